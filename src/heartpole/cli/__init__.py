@@ -1,0 +1,78 @@
+"""The ``heartpole`` command: one entry point, one subcommand per module of this package.
+
+Each module here that defines ``register(subparsers)`` adds its subcommands; a subcommand's handler
+takes the parsed arguments and returns an exit code. The command line only parses, calls the library
+and prints: the logic lives in the modules below it. Errors a user can cause (bad arguments, missing
+files) end in one clear line on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from typing import Sequence
+
+from heartpole.cli.common import CommandError
+
+DESCRIPTION = """\
+HeartPole: CartPole for health. An agent decides every half-hour of a working day whether to do
+nothing, drink coffee, drink beer or sleep, trading productivity against the risk of a heart attack.
+
+examples:
+  heartpole evaluate --policy expert            # 2,000 episodes, 95% intervals
+  heartpole compare --policy expert --policy reference
+  heartpole baselines                           # the table of built-in policies
+  heartpole train --out runs/ppo                # train an agent with Stable-Baselines3
+  heartpole plot model --out figures/           # the tutorial's curves as PNGs
+  heartpole play                                # play HeartPole yourself
+
+Run 'heartpole COMMAND --help' for each command's options.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand found in :mod:`heartpole.cli`."""
+    parser = argparse.ArgumentParser(
+        prog="heartpole", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module in _command_modules():
+        module.register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``heartpole`` command with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.handler(args) or 0)
+    except CommandError as error:
+        print(f"heartpole {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"heartpole {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _command_modules() -> list:
+    names = sorted(m.name for m in pkgutil.iter_modules(__path__) if m.name != "common")
+    modules = [importlib.import_module(f"{__name__}.{name}") for name in names]
+    modules = [m for m in modules if hasattr(m, "register")]
+    return sorted(modules, key=lambda m: getattr(m, "ORDER", 100))
+
+
+def _version() -> str:
+    from heartpole import __version__
+
+    return __version__
+
+
+if __name__ == "__main__":
+    sys.exit(main())

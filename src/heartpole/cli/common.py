@@ -1,0 +1,147 @@
+"""What every ``heartpole`` subcommand shares: errors, progress bars, tables and safe file writing."""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence
+
+
+class CommandError(Exception):
+    """A problem the user can fix; printed as one line on stderr with exit code 2."""
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise_arg(f"expected a whole number >= 1, got {text!r}")
+    if value < 1:
+        raise_arg(f"expected a whole number >= 1, got {value}")
+    return value
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, an integer >= 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise_arg(f"expected a seed (a whole number >= 0), got {text!r}")
+    if value < 0:
+        raise_arg(f"expected a seed (a whole number >= 0), got {value}")
+    return value
+
+
+def raise_arg(message: str) -> None:
+    import argparse
+
+    raise argparse.ArgumentTypeError(message)
+
+
+class Progress:
+    """A one-line progress bar on stderr, shown when stderr is a terminal (or HEARTPOLE_PROGRESS=1)."""
+
+    def __init__(self, total: int, description: str, stream: Any = None) -> None:
+        self.total, self.description, self.done = max(int(total), 1), description, 0
+        self.stream = stream or sys.stderr
+        self.enabled = os.environ.get("HEARTPOLE_PROGRESS") == "1" or bool(getattr(self.stream, "isatty", bool)())
+        self._start = self._last_draw = time.monotonic()
+
+    def update(self, amount: int = 1) -> None:
+        """Advance by ``amount`` and redraw at most ten times a second."""
+        self.done = min(self.done + amount, self.total)
+        now = time.monotonic()
+        if self.enabled and (now - self._last_draw >= 0.1 or self.done == self.total):
+            self._last_draw = now
+            self._draw(now)
+
+    def _draw(self, now: float) -> None:
+        share = self.done / self.total
+        bar = "#" * int(30 * share) + "." * (30 - int(30 * share))
+        elapsed = now - self._start
+        eta = elapsed / share - elapsed if share > 0 else 0.0
+        self.stream.write(f"\r{self.description} [{bar}] {100 * share:5.1f}% {elapsed:6.1f}s (eta {eta:5.1f}s)")
+        self.stream.flush()
+
+    def close(self) -> None:
+        """End the bar's line."""
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+@contextmanager
+def progress(total: int, description: str) -> Iterator[Progress]:
+    """``with progress(total, "evaluating") as bar: bar.update(n)``."""
+    bar = Progress(total, description)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A plain-text table with right-aligned numbers, for the terminal."""
+    cells = [[str(h) for h in headers]] + [[_cell(v) for v in row] for row in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(headers))]
+    lines = []
+    for n, row in enumerate(cells):
+        lines.append("  ".join(c.rjust(w) if n and _is_number(c) else c.ljust(w) for c, w in zip(row, widths)))
+        if n == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """The same table in GitHub Markdown."""
+    lines = ["| " + " | ".join(map(str, headers)) + " |", "|" + "---|" * len(headers)]
+    lines += ["| " + " | ".join(_cell(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else f"{value:.3f}"
+    return str(value)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.split(" ")[0])
+        return True
+    except ValueError:
+        return False
+
+
+def writable_path(path: str | os.PathLike[str], suffixes: Sequence[str] | None = None) -> Path:
+    """Check that ``path`` can be written (its folder exists and is writable, its suffix accepted)."""
+    target = Path(path)
+    if suffixes is not None and target.suffix.lower() not in suffixes:
+        raise CommandError(f"{target}: unsupported file type {target.suffix or '(none)'!r}; use one of {list(suffixes)}")
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise CommandError(f"{target}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise CommandError(f"{target}: no permission to write in {folder}")
+    if target.is_dir():
+        raise CommandError(f"{target} is a folder, expected a file path")
+    return target
+
+
+def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> Path:
+    """Call ``write(temporary_path)`` then move the result to ``path``; on failure nothing is left behind."""
+    target = writable_path(path)
+    handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=target.suffix)
+    os.close(handle)
+    try:
+        write(Path(temporary))
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return target

@@ -1,0 +1,264 @@
+"""The HeartPole Gymnasium environment: one person, one working day after another."""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Any, Sequence
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.error import ResetNeeded
+
+from heartpole import render as rendering
+from heartpole.actions import Action
+from heartpole.dynamics import Dynamics
+from heartpole.model import Params, Variable
+
+# Uniform draws are taken from the generator in blocks of this many steps: one generator call per block
+# keeps the step lean, and the block is part of the env's state, so copies and pickles continue exactly.
+DRAW_BLOCK_STEPS = 256
+# The text log keeps at most this many lines between two renders (the tutorial's log grew without bound).
+LOG_MAX_LINES = 3000
+
+
+def observation_space(dynamics: Dynamics) -> spaces.Box:
+    """The float32 ``Box`` of one observation: each state variable within its documented bounds."""
+    low = np.array([v.low for v in dynamics.variables], dtype=np.float32)
+    high = np.array([v.high for v in dynamics.variables], dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)
+
+
+def build_dynamics(
+    heart_attack_proclivity: float,
+    max_steps: int,
+    actions: Sequence[Action] | None,
+    variables: Sequence[Variable] | None,
+    model_params: dict[str, Any],
+) -> Dynamics:
+    """The :class:`Dynamics` for an env's constructor arguments, with a clear error for unknown ones."""
+    known = set(Params.__dataclass_fields__) - {"heart_attack_proclivity", "max_steps"}
+    unknown = sorted(set(model_params) - known)
+    if unknown:
+        raise ValueError(f"unknown HeartPole argument(s) {unknown}; model parameters are {sorted(known)}")
+    params = Params(heart_attack_proclivity=heart_attack_proclivity, max_steps=max_steps, **model_params)
+    extra: dict[str, Any] = {}
+    if actions is not None:
+        extra["actions"] = actions
+    if variables is not None:
+        extra["variables"] = variables
+    return Dynamics(params=params, **extra)
+
+
+def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> None:
+    """Raise ``ValueError`` unless ``render_mode`` is ``None`` or one of ``modes``."""
+    if render_mode is not None and render_mode not in modes:
+        raise ValueError(f"render_mode must be None or one of {list(modes)}, got {render_mode!r}")
+
+
+class HeartPole(gym.Env[np.ndarray, np.int64]):
+    """HeartPole: balance your productivity against your heart, one half-hour at a time.
+
+    ## Description
+    "CartPole for health", after Vadim Liventsev's tutorial on writing a custom Gym environment. You are
+    at work. Every half-hour you stop and choose to do nothing, drink coffee, drink beer or go to sleep;
+    then you work for a half-hour. Coffee makes you alert, beer can put you at the Ballmer peak, sleep
+    restores alertness, but every drink raises your blood pressure, and blood pressure raises the risk
+    of a heart attack. The dynamics are the tutorial's facts 0-8, implemented in :mod:`heartpole.model`
+    (formulas) and :mod:`heartpole.actions` (the actions as data), interpreted by
+    :class:`heartpole.dynamics.Dynamics`. The same model drives :class:`heartpole.HeartPoleVectorEnv`.
+
+    ## Action Space
+    ``Discrete(4)``:
+
+    | action | name         | effect                                                                  |
+    |--------|--------------|-------------------------------------------------------------------------|
+    | 0      | do_nothing   | nothing                                                                 |
+    | 1      | drink_coffee | alertness += U(0, 1), hypertension += U(0, 0.3)                         |
+    | 2      | drink_beer   | alertness -= U(0, 0.5), hypertension += U(0, 0.3), intoxication += U(0.01, 0.03) |
+    | 3      | sleep        | 16 half-hours pass, then you wake up: alertness = U(0.7, 1.3), time_since_slept = 0 |
+
+    Python ints, NumPy integer scalars and 0-d integer arrays are accepted; anything else raises
+    ``ValueError`` and leaves the env untouched (state and random stream).
+
+    ## Observation Space
+    ``Box(6,)`` of float32, in the tutorial's order:
+
+    | index | variable         | bounds     | meaning                                         |
+    |-------|------------------|------------|-------------------------------------------------|
+    | 0     | alertness        | (-inf, inf)| sleepy vs alert; about 1 on waking              |
+    | 1     | hypertension     | [0, inf)   | blood pressure above normal; fades 0.97 per half-hour |
+    | 2     | intoxication     | [0, inf)   | blood alcohol; fades 0.97 per half-hour         |
+    | 3     | time_since_slept | [0, inf)   | half-hours since waking                         |
+    | 4     | time_elapsed     | [0, inf)   | half-hours since the start, sleep included      |
+    | 5     | work_done        | (-inf, inf)| total productivity so far                       |
+
+    After each action a half-hour of work adds ``productivity = alertness * (1 - sigmoid(alertness - 3))
+    * ballmer(intoxication)`` to ``work_done``; then alertness drops by
+    ``sigmoid((time_since_slept - 40) / 10)`` and hypertension and intoxication fade by 0.97.
+
+    ## Rewards
+    The change of the score ``work_done / time_elapsed`` over the step, minus 100 if a heart attack
+    occurred. A heart attack happens with probability ``0.5 * sigmoid(hypertension - 6)`` after the
+    half-hour of work, and resets hypertension to 0. Rewards telescope: an episode's return is its final
+    score minus 100 times its heart attacks.
+
+    ## Starting State
+    All variables 0, then you wake up: alertness uniform in [0.7, 1.3].
+
+    ## Episode End
+    Nobody dies of HeartPole's heart attacks, so episodes never terminate. They are truncated after
+    ``max_steps`` decisions (1000 by default, the tutorial's ``done``). Stepping on after truncation
+    continues the same day with ``truncated=True``; call ``reset`` to start afresh.
+
+    ## Info
+    ``action`` (the action's name), ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the
+    coin was flipped with, used by the expected-risk estimate), ``productivity`` (this half-hour's work)
+    and ``score`` (``work_done / time_elapsed``).
+
+    ## Rendering
+    ``"ansi"`` returns the tutorial's log of the steps since the last render (action names, HEART ATTACK
+    lines, the state), kept in a bounded buffer; ``"human"`` prints it every step; ``"rgb_array"`` draws
+    the current state as an image for videos.
+
+    ## Arguments
+    ``gymnasium.make("HeartPole-v0", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)``.
+    ``heart_attack_proclivity`` in [0, 1] scales the risk; ``max_steps`` >= 1. Variants (see
+    :func:`heartpole.register_variant`) also pass ``actions``, ``variables`` and other
+    :class:`heartpole.Params` fields such as ``decay_rate`` or ``sleep_half_hours``.
+
+    ## Differences from the tutorial's code (API only, same dynamics)
+    * Gymnasium's API: ``reset(seed=...)`` returns ``(obs, info)`` and ``step`` returns
+      ``(obs, reward, terminated, truncated, info)``; the step limit is a truncation, not a termination.
+    * Randomness comes from ``self.np_random`` (seeded by ``reset(seed=...)``), never from NumPy's
+      global state, so runs are reproducible bit for bit.
+    * Observations are float32 in a float32 ``Box``, so Gymnasium does not warn about precision.
+    * Sleep's 16 half-hours are computed in closed form (``0.97 ** 16``), equal to 16 repeated
+      half-hours up to rounding.
+    * The log is only kept when rendering as text, and is bounded: the tutorial's log grew every step
+      until ``render()`` and slowed training to a crawl.
+
+    ## Version History
+    * v0: the tutorial's HeartPole with Gymnasium's API.
+    """
+
+    metadata = {"render_modes": ["human", "ansi", "rgb_array"], "render_fps": 8}
+
+    def __init__(
+        self,
+        heart_attack_proclivity: float = 0.5,
+        max_steps: int = 1000,
+        render_mode: str | None = None,
+        *,
+        actions: Sequence[Action] | None = None,
+        variables: Sequence[Variable] | None = None,
+        **model_params: Any,
+    ) -> None:
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
+        self.render_mode = render_mode
+        self.heart_attack_proclivity = float(heart_attack_proclivity)
+        self.max_steps = int(max_steps)
+        self.action_space = spaces.Discrete(len(self.dynamics.actions))
+        self.observation_space = observation_space(self.dynamics)
+        self._state: list[float] | None = None
+        self._draws: list[list[float]] = []
+        self._next_draw = 0
+        self._steps = 0
+        self._last_action: str | None = None
+        self._last_attack = False
+        self._heart_attacks = 0
+        self._log: deque[str] = deque(maxlen=LOG_MAX_LINES)
+
+    # ----------------------------------------------------------------------------------------------------
+    @property
+    def actions(self) -> tuple[Action, ...]:
+        """The action set, in action-index order."""
+        return self.dynamics.actions
+
+    @property
+    def state(self) -> dict[str, float]:
+        """The current state as ``{variable: value}`` (a copy)."""
+        if self._state is None:
+            raise ResetNeeded("call reset() before reading the state of HeartPole")
+        return dict(zip(self.dynamics.names, self._state))
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        """Start a new episode: everything at 0, then wake up (fact 1). ``options`` is accepted and unused."""
+        super().reset(seed=seed)
+        self._draws, self._next_draw = [], 0
+        self._state = self.dynamics.initial_state(self._uniforms()[self.dynamics.wake_uniform])
+        self._steps = 0
+        self._last_action, self._last_attack, self._heart_attacks = None, False, 0
+        self._log.clear()
+        if self.render_mode == "human":
+            self.render()
+        return np.array(self._state, dtype=np.float32), {}
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
+        index = action if type(action) is int and 0 <= action < len(self.dynamics.actions) else self._index(action)
+        if self._state is None:
+            raise ResetNeeded("call reset() before step() in HeartPole")
+        reward, worked, risk, attack, new_score = self.dynamics.transition(self._state, index, self._uniforms())
+        self._steps += 1
+        name = self.dynamics.actions[index].name
+        self._last_action, self._last_attack = name, attack
+        self._heart_attacks += attack
+        info = {
+            "action": name,
+            "heart_attack": attack,
+            "heart_attack_risk": risk,
+            "productivity": worked,
+            "score": new_score,
+        }
+        if self.render_mode in ("ansi", "human"):
+            self._log.extend(rendering.log_lines(name, self.state, attack))
+            if self.render_mode == "human":
+                self.render()
+        obs = np.array(self._state, dtype=np.float32)
+        return obs, reward, False, self._steps >= self.max_steps, info
+
+    def render(self) -> str | np.ndarray | None:
+        """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""
+        if self.render_mode is None:
+            gym.logger.warn("HeartPole.render() called without a render_mode; pass render_mode= to make().")
+            return None
+        if self.render_mode == "rgb_array":
+            return rendering.draw_frame(
+                self.state,
+                action=self._last_action,
+                heart_attack=self._last_attack,
+                heart_attacks=self._heart_attacks,
+                step=self._steps,
+                max_steps=self.max_steps,
+            )
+        text = "\n".join(self._log) + ("\n" if self._log else "")
+        self._log.clear()
+        if self.render_mode == "human":
+            print(text, end="")
+            return None
+        return text
+
+    # ----------------------------------------------------------------------------------------------------
+    def _uniforms(self) -> list[float]:
+        """The next step's uniform draws, from a block drawn with one call to ``self.np_random``."""
+        if self._next_draw == len(self._draws):
+            block = self.np_random.random((DRAW_BLOCK_STEPS, self.dynamics.num_uniforms))
+            self._draws, self._next_draw = block.tolist(), 0
+        self._next_draw += 1
+        return self._draws[self._next_draw - 1]
+
+    def _index(self, action: Any) -> int:
+        """Validate an action that is not a plain in-range int; raise a ``ValueError`` naming valid ones."""
+        n = len(self.dynamics.actions)
+        is_integer = isinstance(action, (int, np.integer)) and not isinstance(action, (bool, np.bool_))
+        if isinstance(action, np.ndarray) and action.shape == () and np.issubdtype(action.dtype, np.integer):
+            action, is_integer = action.item(), True
+        if is_integer and 0 <= action < n:
+            return int(action)
+        valid = ", ".join(f"{i} ({a.name})" for i, a in enumerate(self.dynamics.actions))
+        raise ValueError(f"invalid HeartPole action {action!r} ({type(action).__name__}); valid actions: {valid}")
+
+
+HeartPoleEnv = HeartPole

@@ -1,0 +1,168 @@
+"""The HeartPole physiology: parameters, state variables and the formulas of the tutorial's facts 0-8.
+
+Every formula here is written once and works on Python floats (fast, exact ``math`` calls, used by the
+single env) and on NumPy arrays (used by the vector env and by plots) alike. Time is counted in
+half-hours.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+ArrayOrFloat = Any  # a Python float or a NumPy array; the formulas accept either
+
+
+def _exp(x: ArrayOrFloat) -> ArrayOrFloat:
+    """``exp`` for floats (via ``math``, clamped so it never overflows) and for arrays (via NumPy)."""
+    if type(x) is float:
+        return math.exp(x if x < 700.0 else 700.0)
+    with np.errstate(over="ignore"):
+        return np.exp(x)
+
+
+def select(condition: Any, if_true: ArrayOrFloat, if_false: ArrayOrFloat) -> ArrayOrFloat:
+    """``if_true if condition else if_false`` for a bool, element-wise ``np.where`` for arrays."""
+    if isinstance(condition, (bool, np.bool_)):
+        return if_true if condition else if_false
+    return np.where(condition, if_true, if_false)
+
+
+def sigmoid(x: ArrayOrFloat) -> ArrayOrFloat:
+    """The logistic function ``1 / (1 + exp(-x))``."""
+    return 1.0 / (1.0 + _exp(-x))
+
+
+def gaussian(x: ArrayOrFloat, mu: float, sigma: float) -> ArrayOrFloat:
+    """An unnormalised bell curve: 1 at ``x == mu``, width ``sigma``."""
+    return _exp(-((x - mu) ** 2) / (2.0 * sigma**2))
+
+
+def heart_attack_risk(hypertension: ArrayOrFloat, proclivity: float = 0.5) -> ArrayOrFloat:
+    """Fact 4: the probability of a heart attack in one step, ``proclivity * sigmoid(hypertension - 6)``."""
+    return proclivity * sigmoid(hypertension - 6.0)
+
+
+def alertness_decay(time_since_slept: ArrayOrFloat) -> ArrayOrFloat:
+    """Fact 6: alertness lost in one half-hour awake, ``sigmoid((time_since_slept - 40) / 10)``."""
+    return sigmoid((time_since_slept - 40.0) / 10.0)
+
+
+def crippling_anxiety(alertness: ArrayOrFloat) -> ArrayOrFloat:
+    """Fact 7: the share of work lost to anxiety when too alert, ``sigmoid(alertness - 3)``."""
+    return sigmoid(alertness - 3.0)
+
+
+def ballmer(intoxication: ArrayOrFloat) -> ArrayOrFloat:
+    """Fiction 8: programming skill against blood alcohol, with the Ballmer peak at 0.135."""
+    return sigmoid((0.05 - intoxication) * 50.0) + 2.0 * gaussian(intoxication, 0.135, 0.005)
+
+
+def productivity(alertness: ArrayOrFloat, intoxication: ArrayOrFloat) -> ArrayOrFloat:
+    """Fact 7 and fiction 8: work done in one half-hour, ``alertness * (1 - anxiety) * ballmer``."""
+    return alertness * (1.0 - crippling_anxiety(alertness)) * ballmer(intoxication)
+
+
+@dataclass(frozen=True)
+class Params:
+    """The numbers of the model that a variant may change; the defaults are the tutorial's.
+
+    Attributes:
+        heart_attack_proclivity: scales the heart-attack risk (fact 4), in [0, 1].
+        max_steps: decisions per episode; the episode is truncated after this many steps.
+        decay_rate: share of hypertension and intoxication left after a half-hour (fact 5), in (0, 1].
+        sleep_half_hours: how long the sleep action sleeps before waking up.
+        heart_attack_penalty: reward lost per heart attack.
+        wake_alertness: alertness on waking is uniform on this (low, high) interval (fact 1).
+    """
+
+    heart_attack_proclivity: float = 0.5
+    max_steps: int = 1000
+    decay_rate: float = 0.97
+    sleep_half_hours: int = 16
+    heart_attack_penalty: float = 100.0
+    wake_alertness: tuple[float, float] = (0.7, 1.3)
+
+    def __post_init__(self) -> None:
+        _check_number("heart_attack_proclivity", self.heart_attack_proclivity, 0.0, 1.0)
+        _check_integer("max_steps", self.max_steps, 1)
+        _check_number("decay_rate", self.decay_rate, 0.0, 1.0, low_open=True)
+        _check_integer("sleep_half_hours", self.sleep_half_hours, 0)
+        _check_number("heart_attack_penalty", self.heart_attack_penalty, 0.0, math.inf)
+        low, high = _pair("wake_alertness", self.wake_alertness)
+        if not low <= high:
+            raise ValueError(f"wake_alertness must be (low, high) with low <= high, got {self.wake_alertness!r}")
+
+
+def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
+    is_number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    in_range = (
+        is_number
+        and math.isfinite(value)
+        and (low < value if low_open else low <= value)
+        and value <= high
+    )
+    if not in_range:
+        bracket = "(" if low_open else "["
+        raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")
+
+
+def _check_integer(name: str, value: Any, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def _pair(name: str, value: Any) -> tuple[float, float]:
+    if not (isinstance(value, (tuple, list)) and len(value) == 2):
+        raise ValueError(f"{name} must be a (low, high) pair of numbers, got {value!r}")
+    for item in value:
+        _check_number(name, item, -math.inf, math.inf)
+    return float(value[0]), float(value[1])
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One state variable: its name, its bounds in the observation space and how it fades.
+
+    Attributes:
+        name: the key used in observations' documentation, ``info`` and action effects.
+        low, high: bounds of the observation space for this variable.
+        decay: share left after each half-hour (``None``: it does not fade). The string ``"params"``
+            means ``Params.decay_rate``, which is how hypertension and intoxication fade (fact 5).
+        description: one line for the manual.
+    """
+
+    name: str
+    low: float = -math.inf
+    high: float = math.inf
+    decay: float | str | None = None
+    description: str = ""
+
+    def decay_factor(self, params: Params) -> float | None:
+        """The per-half-hour factor of this variable under ``params``, or ``None`` if it does not fade."""
+        return params.decay_rate if self.decay == "params" else self.decay
+
+
+ALERTNESS, HYPERTENSION, INTOXICATION, TIME_SINCE_SLEPT, TIME_ELAPSED, WORK_DONE = range(6)
+
+V0_VARIABLES: tuple[Variable, ...] = (
+    Variable("alertness", description="sleepy (low) vs alert (high); wakes up near 1"),
+    Variable("hypertension", 0.0, decay="params", description="blood pressure above normal"),
+    Variable("intoxication", 0.0, decay="params", description="blood alcohol content"),
+    Variable("time_since_slept", 0.0, description="half-hours since waking up"),
+    Variable("time_elapsed", 0.0, description="half-hours since the episode began, sleep included"),
+    Variable("work_done", description="total productivity so far"),
+)
+
+
+def score(work_done: ArrayOrFloat, time_elapsed: ArrayOrFloat) -> ArrayOrFloat:
+    """The running productivity score ``work_done / time_elapsed`` (0 before any time has passed)."""
+    return work_done / (time_elapsed + (time_elapsed == 0))
+
+
+def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:
+    """The names of ``variables``, in observation order."""
+    return tuple(v.name for v in variables)

@@ -1,0 +1,179 @@
+"""HeartPole as a native NumPy vector env: many people, one array operation per formula."""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.error import ResetNeeded
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from heartpole import render as rendering
+from heartpole.actions import Action
+from heartpole.env import build_dynamics, check_render_mode, observation_space
+from heartpole.model import Variable
+
+
+class HeartPoleVectorEnv(VectorEnv):
+    """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
+
+    The same :class:`heartpole.dynamics.Dynamics` as :class:`heartpole.HeartPole` runs on a
+    ``(num_variables, num_envs)`` float32 state, drawing all of a step's random numbers with one call to
+    ``self.np_random``. Keyword arguments are the single env's.
+
+    Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
+    ``info`` holds arrays of ``num_envs`` values (``heart_attack``, ``heart_attack_risk``,
+    ``productivity``, ``score``), each with Gymnasium's ``_key`` mask.
+
+    Autoreset: by default Gymnasium's ``NEXT_STEP`` mode. An env whose episode was truncated is reset by
+    the *next* call to ``step``, which ignores its action and returns its first observation with reward 0
+    and ``truncated=False``. With ``autoreset_mode=AutoresetMode.SAME_STEP`` the env is reset within the
+    step that ends it; its last observation and info are then in ``info["final_obs"]`` and
+    ``info["final_info"]`` (the mode Stable-Baselines3's VecEnv expects).
+
+    Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 8, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        heart_attack_proclivity: float = 0.5,
+        max_steps: int = 1000,
+        render_mode: str | None = None,
+        *,
+        actions: Sequence[Action] | None = None,
+        variables: Sequence[Variable] | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **model_params: Any,
+    ) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        if AutoresetMode(autoreset_mode) not in modes:
+            raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, got {autoreset_mode!r}")
+        self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
+        self.num_envs = int(num_envs)
+        self.max_steps = int(max_steps)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "autoreset_mode": AutoresetMode(autoreset_mode)}
+        self.single_action_space = spaces.Discrete(len(self.dynamics.actions))
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.single_observation_space = observation_space(self.dynamics)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._state: np.ndarray | None = None
+        self._steps = np.zeros(self.num_envs, dtype=np.int64)
+        self._needs_reset = np.zeros(self.num_envs, dtype=bool)
+        self._last_actions = np.full(self.num_envs, -1)
+        self._last_attacks = np.zeros(self.num_envs, dtype=bool)
+        self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
+
+    @property
+    def state(self) -> np.ndarray:
+        """The current states, ``(num_variables, num_envs)`` float32 (a copy)."""
+        if self._state is None:
+            raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
+        return self._state.copy()
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Start every env afresh (fact 0, then waking up). ``options`` is accepted and unused."""
+        super().reset(seed=seed)
+        wake = self.np_random.random(self.num_envs, dtype=np.float32)
+        self._state = self.dynamics.initial_state(wake)
+        self._steps[:] = 0
+        self._needs_reset[:] = False
+        self._last_actions[:] = -1
+        self._last_attacks[:] = False
+        self._heart_attacks[:] = 0
+        return self._state.T.copy(), {}
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every env with its action; see the class docstring for autoreset and ``info``."""
+        action = self._validate(actions)
+        if self._state is None:
+            raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
+        uniforms = self.np_random.random((self.dynamics.num_uniforms, self.num_envs), dtype=np.float32)
+        reward, worked, risk, attack, new_score = self.dynamics.transition(self._state, action, uniforms)
+        reward = reward.astype(np.float32)
+        self._steps += 1
+        truncated = self._steps >= self.max_steps
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        info = {"heart_attack": attack, "heart_attack_risk": risk, "productivity": worked, "score": new_score}
+        if self._needs_reset.any():  # NEXT_STEP autoreset: these envs start afresh and ignore their action
+            restart = self._needs_reset
+            self._restart(restart, uniforms[self.dynamics.wake_uniform])
+            reward[restart], truncated[restart], attack[restart] = 0.0, False, False
+            action = np.where(restart, -1, action)
+            info = self._masked(info, ~restart)
+        else:
+            info = self._masked(info, None)
+        self._last_actions, self._last_attacks = action, attack
+        self._heart_attacks += attack
+        obs = self._state.T.copy()
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            if truncated.any():
+                info["final_obs"] = np.where(truncated[:, None], obs, np.nan).astype(np.float32)
+                info["_final_obs"] = truncated.copy()
+                info["final_info"] = {k: v for k, v in info.items() if not k.startswith(("final", "_final"))}
+                info["_final_info"] = truncated.copy()
+                self._restart(truncated, self.np_random.random(self.num_envs, dtype=np.float32))
+                obs = self._state.T.copy()
+        else:
+            self._needs_reset = truncated.copy()
+        return obs, reward, terminated, truncated, info
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """With ``render_mode="rgb_array"``: one RGB frame per env, drawing its current state."""
+        if self.render_mode is None or self._state is None:
+            return None
+        names = self.dynamics.names
+        frames = []
+        for i in range(self.num_envs):
+            last = int(self._last_actions[i])
+            frames.append(
+                rendering.draw_frame(
+                    dict(zip(names, self._state[:, i].tolist())),
+                    action=self.dynamics.actions[last].name if last >= 0 else None,
+                    heart_attack=bool(self._last_attacks[i]),
+                    heart_attacks=int(self._heart_attacks[i]),
+                    step=int(self._steps[i]),
+                    max_steps=self.max_steps,
+                )
+            )
+        return tuple(frames)
+
+    # ----------------------------------------------------------------------------------------------------
+    def _restart(self, which: np.ndarray, wake_uniforms: np.ndarray) -> None:
+        assert self._state is not None
+        self._state[:, which] = self.dynamics.initial_state(wake_uniforms[which])
+        self._steps[which] = 0
+        self._heart_attacks[which] = 0
+
+    @staticmethod
+    def _masked(info: dict[str, Any], mask: np.ndarray | None) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for key, value in info.items():
+            out[key] = value
+            out["_" + key] = np.ones(len(value), dtype=bool) if mask is None else mask.copy()
+        return out
+
+    def _validate(self, actions: Any) -> np.ndarray:
+        """The actions as an index array, or ``ValueError`` naming what is wrong and what is accepted."""
+        n, num_actions = self.num_envs, len(self.dynamics.actions)
+        expected = f"an integer array of shape ({n},) with values in 0..{num_actions - 1}"
+        array = np.asarray(actions)
+        if array.shape != (n,):
+            raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got shape {array.shape}")
+        if array.dtype.kind not in "iu":
+            raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got dtype {array.dtype}")
+        if n and (array.min() < 0 or array.max() >= num_actions):
+            raise ValueError(
+                f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
+            )
+        return array.astype(np.intp, copy=False)
