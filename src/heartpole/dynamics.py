@@ -20,7 +20,7 @@ A *single* state is a list of Python floats, the action an ``int`` and the unifo
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
@@ -39,8 +39,24 @@ from heartpole.model import (
     heart_attack_risk,
     productivity,
     score,
-    select,
+    assign_where,
 )
+
+class ActionRecord(NamedTuple):
+    """What one action (Python scalars) or a batch of actions (arrays) does in a step.
+
+    ``effects`` lists ``(variable, low, width, uniform_column)``: the variable gains ``low + width * u``.
+    ``any_rest`` and ``any_wake`` let a step skip what no action of the batch needs.
+    """
+
+    effects: tuple[tuple[int, Any, Any, int], ...]
+    any_rest: bool
+    rest: Any
+    wakes: Any
+    any_wake: bool
+    drowsy_rest: Any
+    fades: Any
+
 
 # Variables the step keeps itself; an action may not write to them.
 BOOKKEEPING = ("time_since_slept", "time_elapsed", "work_done")
@@ -72,7 +88,7 @@ class Dynamics:
         self._compile()
 
     # ----------------------------------------------------------------------------------------------------
-    # compilation: per-action columns
+    # compilation: what each action does, as a record for one action or a table for a batch
     def _compile(self) -> None:
         index = {name: i for i, name in enumerate(self.names)}
         affected = sorted({index[name] for action in self.actions for name in action.effects})
@@ -89,24 +105,48 @@ class Dynamics:
             if math.isfinite(self.variables[i].low)
             and any(a.effects.get(self.names[i], (0.0, 0.0))[0] < 0 for a in self.actions)
         )
-        rows = [self._columns_of(action) for action in self.actions]
-        self._single_columns = tuple(rows)
-        self._batch_table = np.array(rows, dtype=np.float32).T.copy()  # (columns, actions)
         self.max_drowsy_rest = max(action.rest_half_hours for action in self.actions)
         wake_low, wake_high = self.params.wake_alertness
         self._wake_low, self._wake_width = wake_low, wake_high - wake_low
+        self._records = tuple(self._record_of(action) for action in self.actions)
+        self._columns = _BatchColumns(np.array([self._row_of(action) for action in self.actions]).T)
 
-    def _columns_of(self, action: Action) -> tuple[Any, ...]:
-        """The action's columns: effect (low, width) per random variable, rest, wake, drowsy rest, fades."""
-        columns: list[Any] = []
+    def _record_of(self, action: Action) -> ActionRecord:
+        """The single-state record of ``action``: only the effects it has, rest and sleep as Python scalars."""
+        effects = tuple(
+            (i, low, high - low, k)
+            for k, i in enumerate(self.random_variables)
+            for low, high in [action.effects.get(self.names[i], (0.0, 0.0))]
+            if (low, high) != (0.0, 0.0)
+        )
+        rest, drowsy = self._rest_of(action)
+        fades = tuple(factor**rest for _, factor in self.fading)
+        return ActionRecord(effects, rest > 0, float(rest), action.sleeps, action.sleeps, float(drowsy), fades)
+
+    def _row_of(self, action: Action) -> list[float]:
+        """The batch-table column of ``action``: effect (low, width) per random variable, rest, wake, fades."""
+        row: list[float] = []
         for i in self.random_variables:
             low, high = action.effects.get(self.names[i], (0.0, 0.0))
-            columns += [low, high - low]
+            row += [low, high - low]
+        rest, drowsy = self._rest_of(action)
+        return row + [rest, float(action.sleeps), drowsy] + [factor**rest for _, factor in self.fading]
+
+    def _rest_of(self, action: Action) -> tuple[int, int]:
+        """Half-hours without work, and those of them in which alertness decays (none if it then wakes)."""
         rest = action.rest_half_hours + (self.params.sleep_half_hours if action.sleeps else 0)
-        drowsy = 0 if action.sleeps else action.rest_half_hours  # alertness is reset on waking anyway
-        columns += [float(rest), action.sleeps, float(drowsy)]
-        columns += [factor**rest for _, factor in self.fading]
-        return tuple(columns)
+        return rest, 0 if action.sleeps else action.rest_half_hours
+
+    def record(self, action: Any) -> ActionRecord:
+        """What ``action`` does: precomputed for one action index, gathered from the table for an array."""
+        if type(action) is int:
+            return self._records[action]
+        columns = self._columns.gather(action)
+        effects = tuple((i, columns[2 * k], columns[2 * k + 1], k) for k, i in enumerate(self.random_variables))
+        r = 2 * len(self.random_variables)
+        rest, wakes = columns[r], np.not_equal(columns[r + 1], 0)
+        any_rest, any_wake = bool(np.any(rest)), bool(np.any(wakes))
+        return ActionRecord(effects, any_rest, rest, wakes, any_wake, columns[r + 2], columns[r + 3 :])
 
     # ----------------------------------------------------------------------------------------------------
     # states
@@ -123,12 +163,6 @@ class Dynamics:
         state[ALERTNESS] = self.wake_alertness(wake_uniform)
         return state
 
-    def columns(self, action: Any) -> Any:
-        """The per-action columns for one action index (a tuple) or a batch of them (a 2-D array)."""
-        if isinstance(action, int):
-            return self._single_columns[action]
-        return self._batch_table.take(action, axis=1)
-
     # ----------------------------------------------------------------------------------------------------
     # the step
     def transition(self, state: Any, action: Any, uniforms: Any) -> tuple[Any, Any, Any, Any, Any]:
@@ -136,52 +170,46 @@ class Dynamics:
 
         Args:
             state: a list of floats, or a ``(num_variables, num_envs)`` float32 array.
-            action: a valid action index, or an integer array of them (validated by the caller).
+            action: a valid action index (``int``), or an integer array of them (validated by the caller).
             uniforms: ``num_uniforms`` uniform draws in [0, 1), or a ``(num_uniforms, num_envs)`` array.
 
         Returns:
             ``(reward, productivity, heart_attack_risk, heart_attack, score)``, floats or arrays.
         """
-        s, u, c = state, uniforms, self.columns(action)
+        s, u, act = state, uniforms, self.record(action)
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
-        self._apply_effects(s, u, c)
-        self._rest(s, u, c)
-        worked = productivity(s[ALERTNESS], s[INTOXICATION])
-        s[WORK_DONE] += worked
-        self._half_hour_passes(s)
-        new_score = score(s[WORK_DONE], s[TIME_ELAPSED])
-        risk = heart_attack_risk(s[HYPERTENSION], self.params.heart_attack_proclivity)
-        attack = u[self.attack_uniform] < risk
-        s[HYPERTENSION] *= u[self.attack_uniform] >= risk  # the attack resets blood pressure to 0
-        reward = new_score - old_score - self.params.heart_attack_penalty * attack
-        return reward, worked, risk, attack, new_score
-
-    def _apply_effects(self, s: Any, u: Any, c: Any) -> None:
-        for k, i in enumerate(self.random_variables):
-            s[i] += c[2 * k] + c[2 * k + 1] * u[k]
+        for i, low, width, k in act.effects:  # facts 2 and 3
+            s[i] += low + width * u[k]
         for i, low in self.floored:
-            s[i] = select(s[i] < low, low, s[i])
-
-    def _rest(self, s: Any, u: Any, c: Any) -> None:
-        rest_column = 2 * len(self.random_variables)
-        rest, wakes, drowsy = c[rest_column], c[rest_column + 1], c[rest_column + 2]
-        for k in range(self.max_drowsy_rest):
-            s[ALERTNESS] -= (k < drowsy) * alertness_decay(s[TIME_SINCE_SLEPT] + k)
-        for j, (i, _) in enumerate(self.fading):
-            s[i] *= c[rest_column + 3 + j]
-        s[TIME_SINCE_SLEPT] += rest
-        s[TIME_ELAPSED] += rest
-        if not isinstance(wakes, bool):  # a batch: the wake column is 0.0 / 1.0
-            wakes = wakes != 0
-        s[ALERTNESS] = select(wakes, self.wake_alertness(u[self.wake_uniform]), s[ALERTNESS])
-        s[TIME_SINCE_SLEPT] = select(wakes, 0.0, s[TIME_SINCE_SLEPT])
-
-    def _half_hour_passes(self, s: Any) -> None:
-        s[ALERTNESS] -= alertness_decay(s[TIME_SINCE_SLEPT])
+            assign_where(s, i, s[i] < low, low)
+        if act.any_rest:
+            self._rest(s, act)
+        if act.any_wake:  # fact 1
+            assign_where(s, ALERTNESS, act.wakes, self.wake_alertness(u[self.wake_uniform]))
+            assign_where(s, TIME_SINCE_SLEPT, act.wakes, 0.0)
+        worked = productivity(s[ALERTNESS], s[INTOXICATION])  # facts 7 and 8
+        s[WORK_DONE] += worked
+        s[ALERTNESS] -= alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
         for i, factor in self.fading:
             s[i] *= factor
         s[TIME_SINCE_SLEPT] += 1.0
         s[TIME_ELAPSED] += 1.0
+        new_score = score(s[WORK_DONE], s[TIME_ELAPSED])
+        risk = heart_attack_risk(s[HYPERTENSION], self.params.heart_attack_proclivity)  # fact 4
+        coin = u[self.attack_uniform]
+        attack = coin < risk
+        s[HYPERTENSION] *= coin >= risk  # a heart attack resets blood pressure to 0
+        reward = new_score - old_score - self.params.heart_attack_penalty * attack
+        return reward, worked, risk, attack, new_score
+
+    def _rest(self, s: Any, act: ActionRecord) -> None:
+        """Half-hours without work (sleep, naps): alertness decays unless waking follows; fading goes on."""
+        for k in range(self.max_drowsy_rest):
+            s[ALERTNESS] -= (k < act.drowsy_rest) * alertness_decay(s[TIME_SINCE_SLEPT] + k)
+        for (i, _), factor in zip(self.fading, act.fades):
+            s[i] *= factor
+        s[TIME_SINCE_SLEPT] += act.rest
+        s[TIME_ELAPSED] += act.rest
 
     # ----------------------------------------------------------------------------------------------------
     def action_index(self, name: str) -> int:
@@ -190,6 +218,36 @@ class Dynamics:
             if action.name == name:
                 return i
         raise ValueError(f"unknown action {name!r}; this variant has {[a.name for a in self.actions]}")
+
+
+class _BatchColumns:
+    """The per-action table for batches, gathering only the rows that differ between actions.
+
+    A gather costs about a nanosecond per env and row, so rows equal for every action stay Python
+    floats, and rows equal to each other are gathered once.
+    """
+
+    def __init__(self, table: np.ndarray) -> None:
+        self._constants: dict[int, float] = {}
+        self._unique: list[np.ndarray] = []
+        self._source: dict[int, int] = {}
+        for r, row in enumerate(table):
+            if np.all(row == row[0]):
+                self._constants[r] = float(row[0])
+                continue
+            for j, seen in enumerate(self._unique):
+                if np.array_equal(seen, row.astype(np.float32)):
+                    self._source[r] = j
+                    break
+            else:
+                self._source[r] = len(self._unique)
+                self._unique.append(row.astype(np.float32))
+        self._rows = len(table)
+
+    def gather(self, action: np.ndarray) -> list[Any]:
+        """Row ``r`` of the result: a float, or the row's value for each env's action."""
+        gathered = [row.take(action) for row in self._unique]
+        return [self._constants[r] if r in self._constants else gathered[self._source[r]] for r in range(self._rows)]
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:

@@ -31,6 +31,15 @@ def select(condition: Any, if_true: ArrayOrFloat, if_false: ArrayOrFloat) -> Arr
     return np.where(condition, if_true, if_false)
 
 
+def assign_where(values: Any, index: int, condition: Any, value: Any) -> None:
+    """``values[index] = value`` where ``condition`` holds: a plain ``if`` for a bool, in place for arrays."""
+    if isinstance(condition, (bool, np.bool_)):
+        if condition:
+            values[index] = value
+    else:
+        np.copyto(values[index], value, where=condition, casting="unsafe")
+
+
 def sigmoid(x: ArrayOrFloat) -> ArrayOrFloat:
     """The logistic function ``1 / (1 + exp(-x))``."""
     return 1.0 / (1.0 + _exp(-x))
