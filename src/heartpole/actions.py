@@ -93,6 +93,15 @@ class _ReadOnlyDict(dict):  # type: ignore[type-arg]
     def __hash__(self) -> int:  # type: ignore[override]
         return hash(tuple(sorted(self.items())))
 
+    def __reduce__(self) -> tuple[Any, tuple[dict[str, tuple[float, float]]]]:
+        return (_ReadOnlyDict, (dict(self),))
+
+    def __copy__(self) -> _ReadOnlyDict:
+        return self
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> _ReadOnlyDict:
+        return self
+
 
 DO_NOTHING = Action("do_nothing", fact="Fact 0: keep working as you are.")
 DRINK_COFFEE = Action(

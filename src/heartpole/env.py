@@ -23,9 +23,14 @@ LOG_MAX_LINES = 3000
 
 
 def observation_space(dynamics: Dynamics) -> spaces.Box:
-    """The float32 ``Box`` of one observation: each state variable within its documented bounds."""
-    low = np.array([v.low for v in dynamics.variables], dtype=np.float32)
-    high = np.array([v.high for v in dynamics.variables], dtype=np.float32)
+    """The float32 ``Box`` of one observation: each state variable within its documented bounds.
+
+    Unbounded sides are the largest finite float32 rather than infinity, which Gymnasium's env checker
+    warns about; every reachable state lies inside either way.
+    """
+    largest = float(np.finfo(np.float32).max)
+    low = np.array([max(v.low, -largest) for v in dynamics.variables], dtype=np.float32)
+    high = np.array([min(v.high, largest) for v in dynamics.variables], dtype=np.float32)
     return spaces.Box(low, high, dtype=np.float32)
 
 
@@ -82,7 +87,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     ``ValueError`` and leaves the env untouched (state and random stream).
 
     ## Observation Space
-    ``Box(6,)`` of float32, in the tutorial's order:
+    ``Box(6,)`` of float32, in the tutorial's order (an infinite bound is the largest finite float32):
 
     | index | variable         | bounds     | meaning                                         |
     |-------|------------------|------------|-------------------------------------------------|

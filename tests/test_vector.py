@@ -1,0 +1,125 @@
+"""HeartPoleVectorEnv: Gymnasium's vector conventions, autoreset, reproducibility and bad input.
+
+That its dynamics equal the single env's in distribution is tested in test_faithfulness.py.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import heartpole
+
+
+def make(num_envs: int = 4, **kwargs) -> heartpole.HeartPoleVectorEnv:
+    return gym.make_vec("HeartPole-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+
+
+def test_batched_spaces_and_shapes() -> None:
+    env = make(5, max_steps=20, heart_attack_proclivity=0.2)
+    assert env.single_action_space == gym.spaces.Discrete(4)
+    assert env.action_space == gym.spaces.MultiDiscrete([4] * 5)
+    assert env.observation_space.shape == (5, 6) and env.observation_space.dtype == np.float32
+    assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert env.dynamics.params.heart_attack_proclivity == 0.2 and env.max_steps == 20
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (5, 6) and obs.dtype == np.float32 and obs in env.observation_space
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    assert reward.shape == terminated.shape == truncated.shape == (5,) and reward.dtype == np.float32
+    for key in ("heart_attack", "heart_attack_risk", "productivity", "score"):
+        assert info[key].shape == (5,) and info["_" + key].all()
+
+
+def test_reset_seed_reproduces_and_envs_are_independent() -> None:
+    actions = np.random.default_rng(0).integers(0, 4, (50, 8))
+
+    def run(seed: int) -> list[bytes]:
+        env = make(8)
+        out = [env.reset(seed=seed)[0].tobytes()]
+        out += [env.step(a)[0].tobytes() for a in actions]
+        return out
+
+    assert run(3) == run(3)
+    assert run(3) != run(4)
+    obs, _ = make(8).reset(seed=3)
+    assert len(set(obs[:, 0].tolist())) == 8  # each env wakes up with its own alertness
+
+
+def test_next_step_autoreset_restarts_an_env_on_the_step_after_truncation() -> None:
+    env = make(3, max_steps=3)
+    env.reset(seed=1)
+    for _ in range(2):
+        assert not env.step(np.array([1, 2, 0]))[3].any()
+    obs, reward, terminated, truncated, _ = env.step(np.array([1, 2, 0]))
+    assert truncated.all() and not terminated.any() and obs[:, 4].min() >= 3
+    obs, reward, terminated, truncated, info = env.step(np.array([3, 3, 3]))  # actions ignored
+    assert not truncated.any() and (reward == 0).all() and not info["heart_attack"].any()
+    assert (obs[:, 1:] == 0).all() and ((obs[:, 0] >= 0.7) & (obs[:, 0] <= 1.3)).all()
+    assert not info["_score"].any()
+    obs, *_ = env.step(np.array([0, 0, 0]))
+    assert (obs[:, 4] == 1).all()
+
+
+def test_same_step_autoreset_reports_the_final_observation() -> None:
+    env = heartpole.HeartPoleVectorEnv(2, max_steps=2, autoreset_mode=AutoresetMode.SAME_STEP)
+    assert env.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    env.reset(seed=2)
+    env.step(np.array([0, 0]))
+    obs, _, _, truncated, info = env.step(np.array([0, 1]))
+    assert truncated.all() and info["_final_obs"].all()
+    assert (info["final_obs"][:, 4] == 2).all()  # two half-hours worked
+    assert (obs[:, 4] == 0).all()  # already the next episode
+    assert info["final_info"]["score"].shape == (2,)
+
+
+BAD_ACTIONS = [
+    (np.array([0, 1, 2]), "shape"),
+    (np.array([[0, 1, 2, 3]]), "shape"),
+    (np.array([0.0, 1.0, 2.0, 3.0]), "dtype"),
+    (np.array([0, 1, 2, 4]), "values"),
+    (np.array([0, -1, 2, 3]), "values"),
+    (["a", "b", "c", "d"], "dtype"),
+    (3, "shape"),
+]
+
+
+@pytest.mark.parametrize("actions, what", BAD_ACTIONS, ids=[w + str(i) for i, (_, w) in enumerate(BAD_ACTIONS)])
+def test_bad_action_batches_raise_and_change_nothing(actions, what: str) -> None:
+    env = make(4)
+    env.reset(seed=5)
+    env.step(np.array([1, 1, 2, 3]))
+    untouched = copy.deepcopy(env)
+    with pytest.raises(ValueError, match=f"integer array of shape \\(4,\\) with values in 0..3; got {what}"):
+        env.step(actions)
+    np.testing.assert_array_equal(env.state, untouched.state)
+    good = np.array([0, 1, 2, 3])
+    assert env.step(good)[0].tobytes() == untouched.step(good)[0].tobytes()
+
+
+def test_step_before_reset_and_bad_construction() -> None:
+    with pytest.raises(gym.error.ResetNeeded):
+        heartpole.HeartPoleVectorEnv(2).step(np.array([0, 0]))
+    with pytest.raises(ValueError, match="num_envs"):
+        heartpole.HeartPoleVectorEnv(0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        heartpole.HeartPoleVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
+    with pytest.raises(ValueError, match="max_steps"):
+        heartpole.HeartPoleVectorEnv(2, max_steps=0)
+
+
+def test_vector_env_follows_one_env_of_the_single_dynamics_exactly_given_the_same_draws() -> None:
+    """One source of truth: feeding the single-state and the batch paths the same uniforms gives the
+    same states (up to float32 rounding)."""
+    dynamics = heartpole.Dynamics()
+    rng = np.random.default_rng(0)
+    single = dynamics.initial_state(0.25)
+    batch = dynamics.initial_state(np.array([0.25], dtype=np.float32))
+    for action in rng.integers(0, 4, 300).tolist():
+        uniforms = rng.random(dynamics.num_uniforms)
+        dynamics.transition(single, action, uniforms.tolist())
+        dynamics.transition(batch, np.array([action]), uniforms[:, None].astype(np.float32))
+        np.testing.assert_allclose(batch[:, 0], single, rtol=2e-3, atol=2e-3)
