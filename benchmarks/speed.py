@@ -16,7 +16,8 @@ import gc
 import platform
 import time
 import tracemalloc
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -68,7 +69,7 @@ def best_of(repeats: int, *measurements: Callable[[], float]) -> list[float]:
 
 def report(name: str, rate: float, anchor_name: str, anchor: float, goal: float | None = None) -> None:
     ratio = rate / anchor
-    verdict = "" if goal is None else ("  (goal >= %.1fx: %s)" % (goal, "met" if ratio >= goal else "NOT met"))
+    verdict = "" if goal is None else f"  (goal >= {goal:.1f}x: {'met' if ratio >= goal else 'NOT met'})"
     print(f"  {name:<34} {rate:>14,.0f} steps/s   {ratio:5.2f}x {anchor_name}{verdict}")
 
 
@@ -106,8 +107,8 @@ def section_scaling(repeats: int, sizes: list[int]) -> None:
         steps = max(20, min(3000, 4_000_000 // n))
         cartpole, heart = best_of(
             repeats,
-            lambda: vector_rate(lambda: CartPoleVectorEnv(num_envs=n), n, steps),
-            lambda: vector_rate(lambda: heartpole.HeartPoleVectorEnv(n), n, steps),
+            lambda n=n, steps=steps: vector_rate(lambda: CartPoleVectorEnv(num_envs=n), n, steps),
+            lambda n=n, steps=steps: vector_rate(lambda: heartpole.HeartPoleVectorEnv(n), n, steps),
         )
         report(f"HeartPoleVectorEnv n={n}", heart, f"CartPoleVec n={n}", cartpole)
 

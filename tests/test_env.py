@@ -14,7 +14,7 @@ import pytest
 from gymnasium.error import ResetNeeded
 
 import heartpole
-from heartpole.env import DRAW_BLOCK_STEPS, LOG_MAX_LINES
+from heartpole.env import DRAW_BLOCK_STEPS, LOG_MAX_STEPS
 
 NAMES = ["alertness", "hypertension", "intoxication", "time_since_slept", "time_elapsed", "work_done"]
 
@@ -253,7 +253,7 @@ def test_text_log_stays_bounded_when_never_rendered() -> None:
         env.step(0)
     end = tracemalloc.get_traced_memory()[0]
     tracemalloc.stop()
-    assert len(env._log) == LOG_MAX_LINES
+    assert len(env._log) == LOG_MAX_STEPS
     assert end - halfway < 50_000, f"memory grew by {end - halfway} bytes over the second 100k steps"
 
 

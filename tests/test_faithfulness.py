@@ -8,7 +8,7 @@ steps' heart-attack probabilities) has a tiny variance, so it pins the dynamics 
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pytest

@@ -7,7 +7,7 @@ waking up, float64 throughout, and its own random stream. It shares no code with
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections import deque
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -18,8 +19,8 @@ from heartpole.model import Params, Variable
 # Uniform draws are taken from the generator in blocks of this many steps: one generator call per block
 # keeps the step lean, and the block is part of the env's state, so copies and pickles continue exactly.
 DRAW_BLOCK_STEPS = 256
-# The text log keeps at most this many lines between two renders (the tutorial's log grew without bound).
-LOG_MAX_LINES = 3000
+# The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
+LOG_MAX_STEPS = 1000
 
 
 def observation_space(dynamics: Dynamics) -> spaces.Box:
@@ -123,7 +124,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
     ## Rendering
     ``"ansi"`` returns the tutorial's log of the steps since the last render (action names, HEART ATTACK
-    lines, the state), kept in a bounded buffer; ``"human"`` prints it every step; ``"rgb_array"`` draws
+    lines, the state) of up to the last 1000 steps; ``"human"`` prints it every step; ``"rgb_array"`` draws
     the current state as an image for videos.
 
     ## Arguments
@@ -173,7 +174,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._last_action: str | None = None
         self._last_attack = False
         self._heart_attacks = 0
-        self._log: deque[str] = deque(maxlen=LOG_MAX_LINES)
+        self._log: deque[tuple[str, tuple[float, ...], bool]] = deque(maxlen=LOG_MAX_STEPS)
 
     # ----------------------------------------------------------------------------------------------------
     @property
@@ -218,7 +219,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             "score": new_score,
         }
         if self.render_mode in ("ansi", "human"):
-            self._log.extend(rendering.log_lines(name, self.state, attack))
+            self._log.append((name, tuple(self._state), attack))  # formatted only when rendered
             if self.render_mode == "human":
                 self.render()
         obs = np.array(self._state, dtype=np.float32)
@@ -238,7 +239,10 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
                 step=self._steps,
                 max_steps=self.max_steps,
             )
-        text = "\n".join(self._log) + ("\n" if self._log else "")
+        lines: list[str] = []
+        for name, values, attack in self._log:
+            lines += rendering.log_lines(name, dict(zip(self.dynamics.names, values)), attack)
+        text = "\n".join(lines) + ("\n" if lines else "")
         self._log.clear()
         if self.render_mode == "human":
             print(text, end="")

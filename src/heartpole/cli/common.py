@@ -6,9 +6,10 @@ import os
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any
 
 
 class CommandError(Exception):
@@ -122,7 +123,8 @@ def writable_path(path: str | os.PathLike[str], suffixes: Sequence[str] | None =
     """Check that ``path`` can be written (its folder exists and is writable, its suffix accepted)."""
     target = Path(path)
     if suffixes is not None and target.suffix.lower() not in suffixes:
-        raise CommandError(f"{target}: unsupported file type {target.suffix or '(none)'!r}; use one of {list(suffixes)}")
+        suffix = target.suffix or "(none)"
+        raise CommandError(f"{target}: unsupported file type {suffix!r}; use one of {list(suffixes)}")
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise CommandError(f"{target}: folder {folder} does not exist")
