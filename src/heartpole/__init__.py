@@ -46,3 +46,15 @@ __all__ = [
     "productivity",
     "sigmoid",
 ]
+
+from heartpole.actions import V1_ACTIONS, V1_VARIABLES  # noqa: E402
+from heartpole.model import V0_VARIABLES  # noqa: E402
+from heartpole.registry import register_variant  # noqa: E402
+from heartpole.variants import HeartPoleV1, HeartPoleV1VectorEnv  # noqa: E402
+
+__all__ += ["HeartPoleV1", "HeartPoleV1VectorEnv", "V0_VARIABLES", "V1_ACTIONS", "V1_VARIABLES", "register_variant"]
+
+from heartpole.evaluation import Comparison, EvaluationResult, baselines, compare, evaluate  # noqa: E402
+from heartpole.policies import BUILTIN_POLICIES, load_policy  # noqa: E402
+
+__all__ += ["BUILTIN_POLICIES", "Comparison", "EvaluationResult", "baselines", "compare", "evaluate", "load_policy"]

@@ -11,10 +11,13 @@ tutorial's homework) without touching the physiology::
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
+
+from heartpole.model import V0_VARIABLES, Variable
 
 Effects = Mapping[str, tuple[float, float]]
 
@@ -118,3 +121,95 @@ DRINK_BEER = Action(
 SLEEP = Action("sleep", sleeps=True, fact="Sleep 16 half-hours, then wake up quite alert (fact 1).")
 
 V0_ACTIONS: tuple[Action, ...] = (DO_NOTHING, DRINK_COFFEE, DRINK_BEER, SLEEP)
+
+
+# --------------------------------------------------------------------------------------------------------
+# HeartPole-v1: the tutorial's homework. v0's four actions keep their indices 0-3; four new ones follow.
+# Amounts are in HeartPole's units, set against v0's: a coffee, U(0, 0.3) of hypertension, stands for
+# caffeine's acute rise of about 8 mm Hg systolic (Mesas et al. 2011), so 0.1 of hypertension is about
+# 5 mm Hg; alertness is about 1 on waking (fact 1).
+
+THC = Variable(
+    "thc",
+    0.0,
+    decay=0.7,
+    description="THC level: relieves anxiety (anxiety_relief 1); fades 0.7 a half-hour, a half-life of about an hour",
+    anxiety_relief=1.0,
+)
+"""THC in the blood, the state cannabis needs: it moves the onset of crippling anxiety (fact 7) one unit of
+alertness higher per unit, and fades by 0.7 a half-hour, since smoked cannabis acts within minutes, peaks
+after 15-30 minutes and wears off over 2-3 hours (Grotenhermen F (2003) Pharmacokinetics and
+pharmacodynamics of cannabinoids. Clin Pharmacokinet 42(4):327-360): after three hours 0.7 ** 6 = 12% is left."""
+
+V1_VARIABLES: tuple[Variable, ...] = (*V0_VARIABLES, THC)
+"""HeartPole-v1's state: v0's six variables, then ``thc`` (index 6)."""
+
+DRINK_TEA = Action(
+    "drink_tea",
+    {"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)},
+    fact="Tea holds about half the caffeine of coffee (black tea ~47 mg a cup, brewed coffee ~96 mg): half a "
+    "coffee's alertness and blood pressure.",
+    source="Mayo Clinic, Caffeine content for coffee, tea, soda and more, https://www.mayoclinic.org/"
+    "healthy-lifestyle/nutrition-and-healthy-eating/in-depth/caffeine/art-20049372",
+)
+TAKE_NAP = Action(
+    "take_nap",
+    {"alertness": (0.3, 0.6)},
+    rest_half_hours=1,
+    fact="A short nap restores alertness: NASA's planned 40-minute cockpit rest (26 minutes asleep on "
+    "average) improved pilots' performance by 34% and physiological alertness by 54%.",
+    source="Rosekind MR et al. (1995) Alertness management: strategic naps in operational settings. "
+    "J Sleep Res 4(Suppl 2):62-66; NASA Technical Memorandum 108839 (1994)",
+)
+EXERCISE = Action(
+    "exercise",
+    {"hypertension": (-0.15, -0.05)},
+    rest_half_hours=2,
+    fact="An hour of aerobic exercise lowers blood pressure by about 5-7 mm Hg for up to 22 hours, at the "
+    "cost of an hour without work in which alertness keeps draining.",
+    source="Pescatello LS et al. (2004) American College of Sports Medicine position stand: Exercise and "
+    "hypertension. Med Sci Sports Exerc 36(3):533-553",
+)
+SMOKE_CANNABIS = Action(
+    "smoke_cannabis",
+    {"thc": (0.5, 1.0), "alertness": (-0.4, 0.0), "hypertension": (0.0, 0.2)},
+    fact="Cannabis relieves anxiety but dulls attention, and raises heart rate and blood pressure: the risk "
+    "of a heart attack is 4.8 times higher in the hour after smoking.",
+    source="Cuttler C, Spradlin A, McLaughlin RJ (2018) A naturalistic examination of the perceived effects "
+    "of cannabis on negative affect. J Affect Disord 235:198-205 (58% less anxiety reported); Mittleman MA "
+    "et al. (2001) Triggering myocardial infarction by marijuana. Circulation 103(23):2805-2809",
+)
+
+V1_NEW_ACTIONS: tuple[Action, ...] = (DRINK_TEA, TAKE_NAP, EXERCISE, SMOKE_CANNABIS)
+"""The actions HeartPole-v1 adds to v0's, as indices 4-7."""
+
+V1_ACTIONS: tuple[Action, ...] = (*V0_ACTIONS, *V1_NEW_ACTIONS)
+"""HeartPole-v1's action set: v0's four (same indices), then tea, nap, exercise and cannabis."""
+
+ACTION_FIELDS: tuple[str, ...] = ("name", "effects", "rest_half_hours", "sleeps", "fact", "source")
+"""The fields of an action definition, in :class:`Action`'s order."""
+
+
+def as_action(definition: Action | Mapping[str, Any], position: int | None = None) -> Action:
+    """An :class:`Action` from itself or from a mapping of its fields (say, read from a JSON or YAML file).
+
+    ``{"name": "drink_tea", "effects": {"alertness": [0, 0.5]}}`` gives ``Action("drink_tea", {...})``.
+
+    Raises:
+        ValueError: not an Action or a mapping, a missing ``name``, an unknown field or a malformed value;
+            the message names the action (or its ``position`` in a list) and the accepted fields.
+    """
+    where = f"action #{position}" if position is not None else "action"
+    if isinstance(definition, Action):
+        return definition
+    if not isinstance(definition, Mapping):
+        raise ValueError(
+            f"{where} must be a heartpole.Action or a mapping with fields {list(ACTION_FIELDS)}, got "
+            f"{type(definition).__name__} {definition!r}"
+        )
+    unknown = [key for key in definition if key not in ACTION_FIELDS]
+    if unknown:
+        raise ValueError(f"{where} has unknown field(s) {unknown}; accepted fields are {list(ACTION_FIELDS)}")
+    if "name" not in definition:
+        raise ValueError(f"{where} is missing its 'name'; accepted fields are {list(ACTION_FIELDS)}")
+    return Action(**definition)

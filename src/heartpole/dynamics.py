@@ -106,6 +106,7 @@ class Dynamics:
             and any(a.effects.get(self.names[i], (0.0, 0.0))[0] < 0 for a in self.actions)
         )
         self.max_drowsy_rest = max(action.rest_half_hours for action in self.actions)
+        self.calming = tuple((i, float(v.anxiety_relief)) for i, v in enumerate(self.variables) if v.anxiety_relief)
         wake_low, wake_high = self.params.wake_alertness
         self._wake_low, self._wake_width = wake_low, wake_high - wake_low
         self._records = tuple(self._record_of(action) for action in self.actions)
@@ -187,7 +188,7 @@ class Dynamics:
         if act.any_wake:  # fact 1
             assign_where(s, ALERTNESS, act.wakes, self.wake_alertness(u[self.wake_uniform]))
             assign_where(s, TIME_SINCE_SLEPT, act.wakes, 0.0)
-        worked = productivity(s[ALERTNESS], s[INTOXICATION])  # facts 7 and 8
+        worked = productivity(s[ALERTNESS], s[INTOXICATION], self._calm(s) if self.calming else None)  # facts 7, 8
         s[WORK_DONE] += worked
         s[ALERTNESS] -= alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
         for i, factor in self.fading:
@@ -201,6 +202,13 @@ class Dynamics:
         s[HYPERTENSION] *= coin >= risk  # a heart attack resets blood pressure to 0
         reward = new_score - old_score - self.params.heart_attack_penalty * attack
         return reward, worked, risk, attack, new_score
+
+    def _calm(self, s: Any) -> Any:
+        """Anxiety relief from the variables that bring it (v1's THC): ``sum(anxiety_relief * value)``."""
+        calm: Any = 0.0
+        for i, relief in self.calming:
+            calm = calm + relief * s[i]
+        return calm
 
     def _rest(self, s: Any, act: ActionRecord) -> None:
         """Half-hours without work (sleep, naps): alertness decays unless waking follows; fading goes on."""

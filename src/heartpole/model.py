@@ -70,9 +70,16 @@ def ballmer(intoxication: ArrayOrFloat) -> ArrayOrFloat:
     return sigmoid((0.05 - intoxication) * 50.0) + 2.0 * gaussian(intoxication, 0.135, 0.005)
 
 
-def productivity(alertness: ArrayOrFloat, intoxication: ArrayOrFloat) -> ArrayOrFloat:
-    """Fact 7 and fiction 8: work done in one half-hour, ``alertness * (1 - anxiety) * ballmer``."""
-    return alertness * (1.0 - crippling_anxiety(alertness)) * ballmer(intoxication)
+def productivity(
+    alertness: ArrayOrFloat, intoxication: ArrayOrFloat, calm: ArrayOrFloat | None = None
+) -> ArrayOrFloat:
+    """Fact 7 and fiction 8: work done in one half-hour, ``alertness * (1 - anxiety) * ballmer``.
+
+    ``calm`` is anxiety relief (HeartPole-v1's THC; see :attr:`Variable.anxiety_relief`): anxiety sets in
+    ``calm`` units of alertness later, ``crippling_anxiety(alertness - calm)``. ``None``, v0's case, is none.
+    """
+    anxious = alertness if calm is None else alertness - calm
+    return alertness * (1.0 - crippling_anxiety(anxious)) * ballmer(intoxication)
 
 
 @dataclass(frozen=True)
@@ -142,6 +149,10 @@ class Variable:
         decay: share left after each half-hour (``None``: it does not fade). The string ``"params"``
             means ``Params.decay_rate``, which is how hypertension and intoxication fade (fact 5).
         description: one line for the manual.
+        anxiety_relief: each unit of this variable moves the onset of crippling anxiety (fact 7) this
+            many units of alertness higher: the work of a half-hour is
+            ``productivity(alertness, intoxication, calm=sum(anxiety_relief * value))``. 0 (v0's six
+            variables) means the variable does not touch productivity; HeartPole-v1's ``thc`` has 1.
     """
 
     name: str
@@ -149,6 +160,7 @@ class Variable:
     high: float = math.inf
     decay: float | str | None = None
     description: str = ""
+    anxiety_relief: float = 0.0
 
     def decay_factor(self, params: Params) -> float | None:
         """The per-half-hour factor of this variable under ``params``, or ``None`` if it does not fade."""

@@ -1,17 +1,278 @@
-"""HeartPole's ids in Gymnasium's registry."""
+"""HeartPole's ids in Gymnasium's registry, and :func:`register_variant` for users' own variants.
+
+``import heartpole`` registers ``HeartPole-v0`` (the tutorial's) and ``HeartPole-v1`` (its homework), each
+with a single-env entry point and a native vector entry point. A variant is v0 (or v1) with other actions,
+state variables or parameters, registered under its own id and then used exactly like v0 and v1::
+
+    import gymnasium as gym
+    import heartpole
+    from heartpole import Action
+
+    walk = Action("take_a_walk", {"alertness": (0.1, 0.3)}, rest_half_hours=1,
+                  fact="A 10-minute brisk walk raises energy for up to two hours (Thayer 1987).")
+    heartpole.register_variant("WalkPole-v0", actions=[*heartpole.V0_ACTIONS, walk], max_steps=500)
+    env = gym.make("WalkPole-v0")
+    vec = gym.make_vec("WalkPole-v0", num_envs=64, vectorization_mode="vector_entry_point")
+
+Everything is checked when the variant is defined, so a bad definition fails there with a ``ValueError``
+that says what is wrong and what is accepted, never in the middle of an episode.
+"""
 
 from __future__ import annotations
 
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import fields
+from typing import Any
+
 import gymnasium as gym
+import numpy as np
+from gymnasium.envs.registration import EnvSpec
+
+from heartpole.actions import V0_ACTIONS, Action, as_action
+from heartpole.dynamics import BOOKKEEPING
+from heartpole.env import build_dynamics
+from heartpole.model import V0_VARIABLES, Params, Variable
 
 V0_ID = "HeartPole-v0"
+V1_ID = "HeartPole-v1"
+BUILTIN_IDS = (V0_ID, V1_ID)
+
+ENTRY_POINT = "heartpole.env:HeartPole"
+VECTOR_ENTRY_POINT = "heartpole.vector:HeartPoleVectorEnv"
+_BUILTINS = {
+    V0_ID: (ENTRY_POINT, VECTOR_ENTRY_POINT),
+    V1_ID: ("heartpole.variants:HeartPoleV1", "heartpole.variants:HeartPoleV1VectorEnv"),
+}
+
+MAX_REST_HALF_HOURS = 48
+"""The longest rest an action may take (a day): each rest half-hour is computed every step."""
+
+# Gymnasium's id grammar ``[namespace/]name-vN``, with the version required and written without leading
+# zeros (Gymnasium reads "-v01" as version 1 and would register the variant as "...-v1").
+_ID = re.compile(r"(?:[\w:-]+/)?[A-Za-z][\w.-]*-v(?:0|[1-9][0-9]*)")
+
+# Keyword arguments that belong to gymnasium.make / make_vec, not to a variant's definition.
+_MAKE_TIME = {
+    "render_mode": "gymnasium.make(..., render_mode=...)",
+    "num_envs": "gymnasium.make_vec(..., num_envs=...)",
+    "autoreset_mode": "gymnasium.make_vec(..., autoreset_mode=...)",
+    "vectorization_mode": "gymnasium.make_vec(..., vectorization_mode=...)",
+    "vector_kwargs": "gymnasium.make_vec",
+    "wrappers": "gymnasium.make_vec",
+}
+PARAMETERS: tuple[str, ...] = tuple(f.name for f in fields(Params))
+"""The parameters a variant may set: the fields of :class:`heartpole.Params`."""
+
+VARIABLE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Variable))
+
+# The ids this module registered as users' variants: the only ones ``replace=True`` may redefine.
+_variants: set[str] = set()
 
 
 def register_envs() -> None:
-    """Register ``HeartPole-v0`` (single env and native vector env) unless it is registered already."""
-    if V0_ID not in gym.registry:
-        gym.register(
-            id=V0_ID,
-            entry_point="heartpole.env:HeartPole",
-            vector_entry_point="heartpole.vector:HeartPoleVectorEnv",
+    """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered."""
+    for env_id, (entry_point, vector_entry_point) in _BUILTINS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
+
+
+def register_variant(
+    id: str,
+    actions: Sequence[Action | Mapping[str, Any]] | None = None,
+    variables: Sequence[Variable | Mapping[str, Any]] | None = None,
+    *,
+    replace: bool = False,
+    **params: Any,
+) -> EnvSpec:
+    """Define a HeartPole variant and register it with Gymnasium, for ``make`` and ``make_vec`` alike.
+
+    Args:
+        id: the new id, ``"Name-vN"`` (optionally ``"namespace/Name-vN"``): a name that starts with a
+            letter, then ``-v`` and a version number, as Gymnasium spells ids.
+        actions: the action set in action-index order, as :class:`heartpole.Action` objects or mappings of
+            their fields (``{"name": ..., "effects": {...}, "rest_half_hours": ..., "sleeps": ...,
+            "fact": ..., "source": ...}``). Default: v0's four. Start from ``heartpole.V0_ACTIONS`` or
+            ``heartpole.V1_ACTIONS`` to keep their indices.
+        variables: the state variables in observation order: v0's six exactly
+            (``heartpole.V0_VARIABLES``), then any that the actions need, as :class:`heartpole.Variable`
+            objects or mappings of their fields. Each starts at 0, so 0 must lie within its bounds. Default:
+            v0's six. ``heartpole.V1_VARIABLES`` adds v1's ``thc``.
+        replace: redefine a variant this function registered before (handy when re-running a notebook).
+            The built-in ``HeartPole-v0`` and ``HeartPole-v1`` and other packages' ids are never replaced.
+        **params: :class:`heartpole.Params` fields: ``heart_attack_proclivity``, ``max_steps``,
+            ``decay_rate``, ``sleep_half_hours``, ``heart_attack_penalty``, ``wake_alertness``. They become
+            the variant's defaults, which ``gymnasium.make(id, ...)`` can still override.
+
+    Returns:
+        The registered :class:`gymnasium.envs.registration.EnvSpec`.
+
+    Raises:
+        ValueError: a malformed or taken id; an action or variable of the wrong type, shape or value, or
+            with a missing or unknown field; duplicate names; an effect on a variable the variant lacks or
+            that the step keeps itself; an unknown parameter or one out of range.
+    """
+    _check_id(id, replace)
+    try:
+        action_set = _actions(actions)
+        variable_set = _variables(variables)
+        _check_effects(action_set, variable_set)
+        model_params = _params(params)
+        proclivity = model_params.pop("heart_attack_proclivity", Params.heart_attack_proclivity)
+        max_steps = model_params.pop("max_steps", Params.max_steps)
+        # The env's own constructor path: what passes here builds every env of the variant.
+        build_dynamics(proclivity, max_steps, action_set, variable_set, model_params)
+    except ValueError as error:
+        raise ValueError(f"HeartPole variant {id!r}: {error}") from None
+    kwargs: dict[str, Any] = {"actions": action_set, "variables": variable_set, **params}
+    replaced = gym.registry.pop(id, None)  # only a variant of ours, when replacing
+    try:
+        gym.register(id=id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT, kwargs=kwargs)
+    except gym.error.Error as error:  # Gymnasium's own version rules, e.g. "Name" and "Name-v0" together
+        if replaced is not None:
+            gym.registry[id] = replaced
+        raise ValueError(f"HeartPole variant {id!r}: {error}") from None
+    _variants.add(id)
+    return gym.spec(id)
+
+
+# ------------------------------------------------------------------------------------------------------
+# checks
+
+
+def _check_id(env_id: Any, replace: bool) -> None:
+    if not isinstance(env_id, str) or not _ID.fullmatch(env_id):
+        raise ValueError(
+            f"a HeartPole variant id must look like 'Name-vN' or 'namespace/Name-vN' (a name starting with a "
+            f"letter, of letters, digits, '_', '-' and '.', then '-v' and a version such as 0 or 12), e.g. "
+            f"'MyPole-v0'; got {env_id!r}"
         )
+    if not isinstance(replace, bool):
+        raise ValueError(f"replace must be True or False, got {replace!r}")
+    if env_id in BUILTIN_IDS:
+        raise ValueError(f"{env_id!r} is built into HeartPole and cannot be redefined; give your variant its own id")
+    if env_id in gym.registry and not (replace and env_id in _variants):
+        name, version = env_id.rsplit("-v", 1)
+        hint = "pass replace=True to redefine it" if env_id in _variants else "it is not a HeartPole variant"
+        raise ValueError(
+            f"{env_id!r} is already registered ({hint}); choose another id, e.g. '{name}-v{int(version) + 1}'"
+        )
+
+
+def _actions(actions: Any) -> tuple[Action, ...]:
+    if actions is None:
+        return V0_ACTIONS
+    if isinstance(actions, (str, bytes, Mapping, Action)) or not isinstance(actions, Sequence):
+        raise ValueError(
+            "actions must be a list of heartpole.Action objects (or mappings of their fields), e.g. "
+            f"[*heartpole.V0_ACTIONS, my_action]; got {type(actions).__name__} {actions!r}"
+        )
+    action_set = tuple(as_action(definition, position) for position, definition in enumerate(actions))
+    for action in action_set:
+        if action.rest_half_hours > MAX_REST_HALF_HOURS:
+            raise ValueError(
+                f"action {action.name!r} rests {action.rest_half_hours} half-hours; at most {MAX_REST_HALF_HOURS} "
+                "(a day) are accepted. For a night's sleep use sleeps=True and the sleep_half_hours parameter"
+            )
+    return action_set
+
+
+def _variables(variables: Any) -> tuple[Variable, ...]:
+    if variables is None:
+        return V0_VARIABLES
+    if isinstance(variables, (str, bytes, Mapping, Variable)) or not isinstance(variables, Sequence):
+        raise ValueError(
+            "variables must be a list of heartpole.Variable objects (or mappings of their fields) starting "
+            "with v0's six, e.g. (*heartpole.V0_VARIABLES, heartpole.Variable('stress', 0.0, decay=0.9)); "
+            f"got {type(variables).__name__} {variables!r}"
+        )
+    variable_set = tuple(_variable(definition, position) for position, definition in enumerate(variables))
+    if variable_set[: len(V0_VARIABLES)] != V0_VARIABLES:
+        raise ValueError(
+            f"the first six variables must be v0's exactly, {[v.name for v in V0_VARIABLES]} "
+            f"(heartpole.V0_VARIABLES), since the step itself reads and writes them; got "
+            f"{[v.name for v in variable_set[: len(V0_VARIABLES)]]}. Add yours after them: "
+            "variables=(*heartpole.V0_VARIABLES, my_variable)"
+        )
+    names = [v.name for v in variable_set]
+    duplicates = sorted({name for name in names if names.count(name) > 1})
+    if duplicates:
+        raise ValueError(f"variable names must be unique; {duplicates} appear more than once in {names}")
+    return variable_set
+
+
+def _variable(definition: Any, position: int) -> Variable:
+    where = f"variable #{position}"
+    if isinstance(definition, Mapping):
+        unknown = [key for key in definition if key not in VARIABLE_FIELDS]
+        if unknown:
+            raise ValueError(f"{where} has unknown field(s) {unknown}; accepted fields are {list(VARIABLE_FIELDS)}")
+        if "name" not in definition:
+            raise ValueError(f"{where} is missing its 'name'; accepted fields are {list(VARIABLE_FIELDS)}")
+        definition = Variable(**definition)
+    if not isinstance(definition, Variable):
+        raise ValueError(
+            f"{where} must be a heartpole.Variable or a mapping with fields {list(VARIABLE_FIELDS)}, got "
+            f"{type(definition).__name__} {definition!r}"
+        )
+    v = definition
+    if not isinstance(v.name, str) or not v.name.isidentifier():
+        raise ValueError(f"{where}: a variable name must be an identifier such as 'stress', got {v.name!r}")
+    where = f"variable {v.name!r}"
+    for bound in ("low", "high"):
+        value = getattr(v, bound)
+        if not _is_number(value) or math.isnan(value):
+            raise ValueError(f"{where}: {bound} must be a number (or +-math.inf), got {value!r}")
+    if not v.low <= 0.0 <= v.high:
+        raise ValueError(f"{where}: every variable starts at 0, so low <= 0 <= high is needed; got [{v.low}, {v.high}]")
+    decay_ok = v.decay is None or v.decay == "params" or (_is_number(v.decay) and 0.0 < v.decay <= 1.0)
+    if not decay_ok:
+        raise ValueError(
+            f"{where}: decay must be None (no fading), 'params' (fades like hypertension) or the share left "
+            f"after a half-hour, in (0, 1]; got {v.decay!r}"
+        )
+    if not _is_number(v.anxiety_relief) or not math.isfinite(v.anxiety_relief):
+        raise ValueError(f"{where}: anxiety_relief must be a finite number, got {v.anxiety_relief!r}")
+    if not isinstance(v.description, str):
+        raise ValueError(f"{where}: description must be a string, got {v.description!r}")
+    return v
+
+
+def _check_effects(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:
+    by_name = {v.name: v for v in variables}
+    for action in actions:
+        for name, (_, high) in action.effects.items():
+            if name in BOOKKEEPING:
+                raise ValueError(
+                    f"action {action.name!r} may not change {name!r}, which the step keeps itself; actions may "
+                    f"change {[v for v in by_name if v not in BOOKKEEPING]}"
+                )
+            if name not in by_name:
+                raise ValueError(
+                    f"action {action.name!r} changes {name!r}, which is not a state variable of this variant "
+                    f"({list(by_name)}); add it, e.g. variables=(*heartpole.V0_VARIABLES, "
+                    f"heartpole.Variable({name!r}, 0.0, decay=0.9))"
+                )
+            if high > 0 and math.isfinite(by_name[name].high):
+                raise ValueError(
+                    f"action {action.name!r} raises {name!r}, whose high bound is {by_name[name].high}: the step "
+                    "keeps variables above their low bound but does not cap them, so use high=math.inf"
+                )
+
+
+def _params(params: dict[str, Any]) -> dict[str, Any]:
+    for name, where in _MAKE_TIME.items():
+        if name in params:
+            raise ValueError(f"{name} is chosen when making the env, not when defining a variant: pass it to {where}")
+    unknown = sorted(set(params) - set(PARAMETERS))
+    if unknown:
+        raise ValueError(
+            f"unknown parameter(s) {unknown}; a variant takes actions, variables and the parameters "
+            f"{list(PARAMETERS)}"
+        )
+    return dict(params)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))

@@ -1,0 +1,341 @@
+"""``heartpole evaluate``, ``heartpole compare`` and ``heartpole baselines``: honest numbers for policies.
+
+The work is done by :mod:`heartpole.evaluation`; these commands parse, call it and print.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, TypeVar
+
+from heartpole.cli.common import (
+    CommandError,
+    atomic_write,
+    format_table,
+    markdown_table,
+    positive_int,
+    progress,
+    seed_int,
+    writable_path,
+)
+
+ORDER = 10
+
+POLICY_HELP = (
+    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
+    "'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
+)
+PROTOCOL = (
+    "Every policy runs the same episodes: same seed, same chunks of side-by-side envs, so the same random "
+    "numbers meet the same events (common random numbers). Intervals are 95% Student-t intervals over "
+    "episodes. The expected-risk return (final score - 100 x the summed heart-attack probabilities) "
+    "estimates the same expected return as the realized one, without the heart-attack coin's noise."
+)
+T = TypeVar("T")
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``evaluate``, ``compare`` and ``baselines`` subcommands."""
+    _register_evaluate(subparsers)
+    _register_compare(subparsers)
+    _register_baselines(subparsers)
+
+
+def _register_evaluate(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "evaluate",
+        help="evaluate a policy over many episodes, with 95%% intervals",
+        description="Evaluate a policy over many episodes on the native vector env. " + PROTOCOL,
+        epilog="example: heartpole evaluate --policy expert --episodes 2000 --json",
+    )
+    parser.add_argument("--policy", required=True, metavar="P", help=POLICY_HELP)
+    _add_run_options(parser)
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.set_defaults(handler=run_evaluate)
+
+
+def _register_compare(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "compare",
+        help="compare two policies episode by episode (paired, common random numbers)",
+        description="Evaluate two policies on the same episodes and report A - B with a paired 95% interval, "
+        "far tighter than the two separate intervals. " + PROTOCOL,
+        epilog="example: heartpole compare --policy expert --policy reference",
+    )
+    parser.add_argument("--policy", action="append", required=True, metavar="P", help=POLICY_HELP + "; give two")
+    _add_run_options(parser)
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.set_defaults(handler=run_compare)
+
+
+def _register_baselines(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "baselines",
+        help="the table of all built-in policies (and models) beside the published Table 1",
+        description="Evaluate every built-in policy (and any --policy given) alike, rank them by the "
+        "expected-risk return, print the table beside the published Table 1 and write it as "
+        "baselines.md and baselines.csv. " + PROTOCOL,
+        epilog="example: heartpole baselines --policy runs/ppo/model.zip --out results",
+    )
+    parser.add_argument("--policy", action="append", default=[], metavar="P", help="an extra policy or model")
+    _add_run_options(parser)
+    parser.add_argument("--out", default="results", metavar="DIR", help="folder for baselines.md and .csv")
+    parser.add_argument("--json", action="store_true", help="print the results as JSON instead of tables")
+    parser.set_defaults(handler=run_baselines)
+
+
+def _add_run_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument("--episodes", type=positive_int, default=2000, metavar="N", help="episodes (default 2000)")
+    parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
+    parser.add_argument(
+        "--num-envs",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="episodes run side by side (default: all of them, up to 10000)",
+    )
+
+
+# ------------------------------------------------------------------------------------------------------
+# handlers
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """``heartpole evaluate``: one policy's result, as a table or JSON."""
+    result = _evaluate(args.policy, args)
+    print(json.dumps(result.to_dict()) if args.json else format_result(result))
+    return 0
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    """``heartpole compare``: two policies, paired."""
+    from heartpole.evaluation import Comparison
+
+    if len(args.policy) != 2:
+        raise CommandError(f"compare needs exactly two --policy options, got {len(args.policy)}")
+    a, b = (_evaluate(spec, args) for spec in args.policy)
+    comparison = _library(lambda: Comparison.of(a, b))
+    print(json.dumps(comparison.to_dict()) if args.json else format_comparison(comparison))
+    return 0
+
+
+def run_baselines(args: argparse.Namespace) -> int:
+    """``heartpole baselines``: every built-in and extra policy, printed and written as Markdown and CSV."""
+    from heartpole.evaluation import rank
+    from heartpole.policies import BUILTIN_POLICIES, load_policy
+
+    markdown_path, csv_path = _output_paths(args.out)
+    extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
+    for spec in extras:  # fail before the long run, not after it
+        _library(lambda spec=spec: load_policy(spec, args.env))
+    results = rank(_evaluate(spec, args) for spec in [*BUILTIN_POLICIES, *extras])
+    _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))
+    _library(lambda: atomic_write(csv_path, lambda path: _write_text(path, baselines_csv(results))))
+    if args.json:
+        print(json.dumps({"results": [r.to_dict() for r in results], "published": _published_dicts()}))
+    else:
+        print(format_baselines(results))
+        print(f"\nwrote {markdown_path} and {csv_path}")
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------------
+# running the library with clear errors
+
+
+def _evaluate(spec: str, args: argparse.Namespace) -> Any:
+    """Evaluate ``spec`` with the run options of ``args``, a progress bar on stderr, errors as one line."""
+    from heartpole.evaluation import evaluate
+    from heartpole.policies import env_dynamics
+
+    max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
+    with progress(args.episodes * max_steps, f"{spec}") as bar:
+        return _library(
+            lambda: evaluate(spec, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
+        )
+
+
+def _library(call: Callable[[], T]) -> T:
+    """Run ``call``; turn the errors a user can cause into :class:`CommandError` s (one line, exit 2)."""
+    try:
+        return call()
+    except (ValueError, OSError) as error:
+        raise CommandError(" ".join(str(error).split())) from None
+
+
+def _write_text(path: Path, text: str) -> None:
+    """Write ``text``; give the file the usual permissions (the temporary file of atomic_write is 0600)."""
+    path.write_text(text)
+    umask = os.umask(0)
+    os.umask(umask)
+    path.chmod(0o666 & ~umask)
+
+
+def _output_paths(out: str) -> tuple[Path, Path]:
+    folder = Path(out)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise CommandError(f"cannot create output folder {folder}: {error.strerror or error}") from None
+    return writable_path(folder / "baselines.md"), writable_path(folder / "baselines.csv")
+
+
+# ------------------------------------------------------------------------------------------------------
+# formatting
+
+
+def _interval(value: float, interval: Sequence[float], digits: int) -> list[str]:
+    return [f"{value:.{digits}f}", f"[{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]"]
+
+
+def format_result(result: Any) -> str:
+    """One evaluation as a small table, with the interval-width ratio."""
+    rows = [
+        ["expected-risk return (ranks)", *_interval(result.expected_return, result.expected_ci95, 4)],
+        ["realized return", *_interval(result.mean_return, result.ci95, 2)],
+        ["heart attacks / episode", *_interval(result.heart_attacks_per_episode, result.heart_attacks_ci95, 3)],
+        ["expected heart attacks / episode", f"{result.expected_heart_attacks_per_episode:.4f}", ""],
+        ["final score (work / time)", *_interval(result.score, result.score_ci95, 4)],
+        ["drinks / episode", f"{result.drinks_per_episode:.2f}", ""],
+        ["sleeps / episode", f"{result.sleeps_per_episode:.2f}", ""],
+    ]
+    header = (
+        f"{result.policy} on {result.env_id}: {result.episodes} episodes of {result.max_steps} steps, "
+        f"seed {result.seed} ({result.seconds:.1f} s)"
+    )
+    note = f"the expected-risk interval is {result.width_ratio:.0f}x narrower than the realized one"
+    return "\n".join([header, format_table(["measure", "mean", "95% CI"], rows), note])
+
+
+def format_comparison(comparison: Any) -> str:
+    """Two evaluations side by side and their paired difference."""
+    a, b = comparison.a, comparison.b
+    rows = [
+        [
+            "expected-risk return",
+            " ".join(_interval(a.expected_return, a.expected_ci95, 4)),
+            " ".join(_interval(b.expected_return, b.expected_ci95, 4)),
+            " ".join(_interval(comparison.expected_difference, comparison.expected_ci95, 4)),
+        ],
+        [
+            "realized return",
+            " ".join(_interval(a.mean_return, a.ci95, 2)),
+            " ".join(_interval(b.mean_return, b.ci95, 2)),
+            " ".join(_interval(comparison.difference, comparison.ci95, 2)),
+        ],
+        [
+            "final score",
+            " ".join(_interval(a.score, a.score_ci95, 4)),
+            " ".join(_interval(b.score, b.score_ci95, 4)),
+            " ".join(_interval(comparison.score_difference, comparison.score_ci95, 4)),
+        ],
+    ]
+    half = [(ci[1] - ci[0]) / 2 for ci in (a.ci95, b.ci95, comparison.ci95)]
+    header = (
+        f"{a.policy} - {b.policy} on {a.env_id}: {a.episodes} paired episodes of {a.max_steps} steps, "
+        f"seed {a.seed}, common random numbers"
+    )
+    note = (
+        f"realized return: the paired interval is +-{half[2]:.2f}, "
+        f"against +-{half[0]:.2f} and +-{half[1]:.2f} for the two separate ones"
+    )
+    table = format_table(["measure (95% CI)", a.policy, b.policy, "difference (paired)"], rows)
+    return "\n".join([header, table, note])
+
+
+def format_baselines(results: Sequence[Any]) -> str:
+    """The results table and the published Table 1, for the terminal."""
+    from heartpole.evaluation import published_rows, table_rows
+
+    first = results[0]
+    return "\n".join(
+        [
+            f"{first.env_id}: {first.episodes} episodes of {first.max_steps} steps per policy, seed {first.seed}",
+            format_table(*table_rows(results)),
+            "",
+            "published Table 1 (HEALTHINF abstract, keras-rl, 20 test episodes)",
+            format_table(*published_rows()),
+        ]
+    )
+
+
+def baselines_markdown(results: Sequence[Any]) -> str:
+    """The Markdown file written by ``heartpole baselines``."""
+    from heartpole.evaluation import PUBLISHED_EPISODES, published_rows, table_rows
+
+    first = results[0]
+    return "\n".join(
+        [
+            "# HeartPole baselines",
+            "",
+            f"{first.env_id}, {first.episodes} episodes of {first.max_steps} steps per policy, seed {first.seed}. "
+            + PROTOCOL
+            + " Ranked by the expected-risk return.",
+            "",
+            markdown_table(*table_rows(results)),
+            "",
+            f"## Published Table 1 (HEALTHINF abstract, keras-rl, {PUBLISHED_EPISODES} test episodes)",
+            "",
+            "A heart attack costs 100 and happens about 1.2 times an episode, so one episode's return has a "
+            f"standard deviation near 110 and a {PUBLISHED_EPISODES}-episode mean a 95% interval of about +-51: "
+            "too wide to rank these rows.",
+            "",
+            markdown_table(*published_rows()),
+            "",
+        ]
+    )
+
+
+CSV_FIELDS = (
+    "source",
+    "policy",
+    "episodes",
+    "seed",
+    "mean_return",
+    "ci95_low",
+    "ci95_high",
+    "expected_return",
+    "expected_ci95_low",
+    "expected_ci95_high",
+    "heart_attacks_per_episode",
+    "expected_heart_attacks_per_episode",
+    "score",
+    "drinks_per_episode",
+    "sleeps_per_episode",
+)
+
+
+def baselines_csv(results: Sequence[Any]) -> str:
+    """The CSV file written by ``heartpole baselines``: our rows, then the published ones (blank where unknown)."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")
+    writer.writeheader()
+    for result in results:
+        row = result.to_dict()
+        row["ci95_low"], row["ci95_high"] = row.pop("ci95")
+        row["expected_ci95_low"], row["expected_ci95_high"] = row.pop("expected_ci95")
+        writer.writerow({key: row.get(key) for key in CSV_FIELDS} | {"source": "heartpole evaluate"})
+    for published in _published_dicts():
+        writer.writerow({key: published.get(key) for key in CSV_FIELDS})
+    return buffer.getvalue()
+
+
+def _published_dicts() -> list[dict[str, Any]]:
+    from heartpole.evaluation import PUBLISHED_EPISODES, PUBLISHED_TABLE1
+
+    return [
+        {
+            "source": "published Table 1",
+            "policy": f"{algo} ({model})" if model != "-" else algo,
+            "episodes": PUBLISHED_EPISODES,
+            "mean_return": value,
+        }
+        for algo, model, value in PUBLISHED_TABLE1
+    ]

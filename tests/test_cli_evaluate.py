@@ -1,0 +1,119 @@
+"""``heartpole evaluate``, ``compare`` and ``baselines`` through a subprocess, bad input included."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+KEYS = ("mean_return", "ci95", "expected_return", "expected_ci95", "heart_attacks_per_episode", "score", "episodes")
+
+
+def heartpole(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "HEARTPOLE_PROGRESS"}
+    return subprocess.run(
+        [sys.executable, "-m", "heartpole", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=300
+    )
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess[str], *fragments: str) -> None:
+    """Exit code 2, no traceback, and the last stderr line is one ``heartpole ...: error: ...`` line."""
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr and result.stdout == ""
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith("heartpole") and "error:" in last
+    for fragment in fragments:
+        assert fragment in last
+
+
+def test_evaluate_json_has_the_documented_keys() -> None:
+    result = heartpole("evaluate", "--policy", "expert", "--episodes", "40", "--seed", "3", "--json")
+    assert result.returncode == 0 and result.stderr == ""
+    data = json.loads(result.stdout)
+    assert all(key in data for key in KEYS)
+    assert data["episodes"] == 40 and data["seed"] == 3 and data["policy"] == "expert"
+    low, high = data["expected_ci95"]
+    assert low <= data["expected_return"] <= high and data["drinks_per_episode"] == 0
+    assert data["ci95"][1] - data["ci95"][0] > 10 * (high - low)
+
+
+def test_evaluate_prints_a_table() -> None:
+    result = heartpole("evaluate", "--policy", "reference", "--episodes", "20")
+    assert result.returncode == 0
+    for text in ("reference on HeartPole-v0: 20 episodes", "expected-risk return", "95% CI", "narrower"):
+        assert text in result.stdout
+
+
+def test_compare_reports_a_paired_difference() -> None:
+    args = ("compare", "--policy", "expert", "--policy", "reference", "--episodes", "200", "--json")
+    result = heartpole(*args)
+    assert result.returncode == 0 and result.stderr == ""
+    data = json.loads(result.stdout)
+    difference = data["difference"]
+    assert difference["expected_ci95"][0] > 10  # the expert is better, beyond doubt
+    paired = difference["ci95"][1] - difference["ci95"][0]
+    assert paired < min(side["ci95"][1] - side["ci95"][0] for side in (data["a"], data["b"]))
+    text = heartpole(*args[:-1])
+    assert text.returncode == 0 and "difference (paired)" in text.stdout and "separate" in text.stdout
+
+
+def test_baselines_writes_markdown_and_csv(tmp_path: Path) -> None:
+    out = tmp_path / "results" / "nested"
+    result = heartpole("baselines", "--episodes", "20", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "published Table 1" in result.stdout and "expert" in result.stdout
+    markdown = (out / "baselines.md").read_text()
+    assert "| 1 | expert |" in markdown and "## Published Table 1" in markdown and "-84.96" in markdown
+    rows = list(csv.DictReader((out / "baselines.csv").open()))
+    ours = [row["policy"] for row in rows if row["source"] == "heartpole evaluate"]
+    assert ours[0] == "expert" and sorted(ours) == ["coffee", "expert", "nothing", "random", "reference"]
+    assert len([row for row in rows if row["source"] == "published Table 1"]) == 7
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (out / "baselines.csv").stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's 0600
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporary files left
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["evaluate", "--policy", "expret"], ["unknown policy 'expret'", "random, nothing, coffee, reference, expert"]),
+        (["evaluate", "--policy", "missing/model.zip"], ["model file not found"]),
+        (["evaluate", "--policy", str(Path(__file__).parent)], ["is a folder"]),
+        (["evaluate", "--policy", "expert", "--episodes", "0"], ["--episodes"]),
+        (["evaluate", "--policy", "expert", "--seed", "-3"], ["--seed"]),
+        (["evaluate", "--policy", "expert", "--env", "NoSuchPole-v0"], ["unknown env 'NoSuchPole-v0'"]),
+        (["compare", "--policy", "expert"], ["exactly two --policy"]),
+    ],
+)
+def test_bad_input_gives_one_clear_line(args: list[str], fragments: list[str]) -> None:
+    assert_one_line_error(heartpole(*args), *fragments)
+
+
+def test_corrupt_model_and_bad_output_folder(tmp_path: Path) -> None:
+    corrupt = tmp_path / "model.zip"
+    corrupt.write_bytes(b"\x00garbage")
+    assert_one_line_error(heartpole("evaluate", "--policy", str(corrupt)), "not a Stable-Baselines3 model zip")
+    not_a_folder = tmp_path / "file"
+    not_a_folder.write_text("")
+    result = heartpole("baselines", "--episodes", "2", "--out", str(not_a_folder))
+    assert_one_line_error(result, "output folder")
+    result = heartpole("baselines", "--episodes", "2", "--policy", "expret", "--out", str(tmp_path / "out"))
+    assert_one_line_error(result, "unknown policy 'expret'")
+    assert not (tmp_path / "out" / "baselines.md").exists()
+
+
+def test_evaluate_a_saved_model(tmp_path: Path) -> None:
+    sb3 = pytest.importorskip("stable_baselines3")
+    import heartpole as hp
+
+    sb3.DQN("MlpPolicy", hp.HeartPole(), policy_kwargs={"net_arch": [8]}, seed=0).save(tmp_path / "dqn.zip")
+    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "dqn"}))
+    result = heartpole("evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["policy"].endswith("dqn.zip")
