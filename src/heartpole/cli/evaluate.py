@@ -9,7 +9,6 @@ import argparse
 import csv
 import io
 import json
-import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -171,11 +170,8 @@ def _library(call: Callable[[], T]) -> T:
 
 
 def _write_text(path: Path, text: str) -> None:
-    """Write ``text``; give the file the usual permissions (the temporary file of atomic_write is 0600)."""
+    """Write ``text`` to ``path`` (a writer for :func:`atomic_write`)."""
     path.write_text(text)
-    umask = os.umask(0)
-    os.umask(umask)
-    path.chmod(0o666 & ~umask)
 
 
 def _output_paths(out: str) -> tuple[Path, Path]:
