@@ -20,7 +20,8 @@ A *single* state is a list of Python floats, the action an ``int`` and the unifo
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, Sequence
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -36,11 +37,12 @@ from heartpole.model import (
     Params,
     Variable,
     alertness_decay,
+    assign_where,
     heart_attack_risk,
     productivity,
     score,
-    assign_where,
 )
+
 
 class ActionRecord(NamedTuple):
     """What one action (Python scalars) or a batch of actions (arrays) does in a step.
@@ -67,7 +69,7 @@ class Dynamics:
 
     Args:
         actions: the action set, in action-index order (default: v0's four).
-        params: the model's numbers (default: the tutorial's).
+        params: the model's numbers (default: ``Params()``, the tutorial's).
         variables: the state variables in observation order; the first six must be v0's.
 
     Raises:
@@ -77,11 +79,11 @@ class Dynamics:
     def __init__(
         self,
         actions: Sequence[Action] = V0_ACTIONS,
-        params: Params = Params(),
+        params: Params | None = None,
         variables: Sequence[Variable] = V0_VARIABLES,
     ) -> None:
         self.actions = tuple(actions)
-        self.params = params
+        self.params = Params() if params is None else params
         self.variables = tuple(variables)
         self.names = tuple(v.name for v in self.variables)
         _check_definitions(self.actions, self.variables)

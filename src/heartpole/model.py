@@ -8,8 +8,9 @@ half-hours.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -22,13 +23,6 @@ def _exp(x: ArrayOrFloat) -> ArrayOrFloat:
         return math.exp(x if x < 700.0 else 700.0)
     with np.errstate(over="ignore"):
         return np.exp(x)
-
-
-def select(condition: Any, if_true: ArrayOrFloat, if_false: ArrayOrFloat) -> ArrayOrFloat:
-    """``if_true if condition else if_false`` for a bool, element-wise ``np.where`` for arrays."""
-    if isinstance(condition, (bool, np.bool_)):
-        return if_true if condition else if_false
-    return np.where(condition, if_true, if_false)
 
 
 def assign_where(values: Any, index: int, condition: Any, value: Any) -> None:
