@@ -1,0 +1,238 @@
+"""``heartpole plot`` (model, episode, training) and ``heartpole record``: HeartPole's pictures and videos.
+
+They need the optional extra ``pip install "heartpole[plot]"`` (matplotlib; imageio and imageio-ffmpeg
+for MP4 videos). Every output is checked before any work is done (its folder exists and is writable,
+its type is supported) and written to a temporary file that is moved into place when complete, so a
+failure never leaves a partial file behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heartpole.cli.common import CommandError, atomic_write, positive_int, progress, seed_int, writable_path
+
+ORDER = 30
+
+DEFAULT_ENV = "HeartPole-v0"
+INSTALL_HINT = 'install the plot extra: pip install "heartpole[plot]"'
+
+
+def register(subparsers: Any) -> None:
+    """Add ``plot`` (with ``model``, ``episode`` and ``training``) and ``record`` to the ``heartpole`` command."""
+    plot = subparsers.add_parser(
+        "plot",
+        help="draw the model's curves, an episode or a learning curve as PNGs",
+        description='Draw HeartPole as PNG figures (needs matplotlib: pip install "heartpole[plot]").',
+    )
+    kinds = plot.add_subparsers(dest="figure", metavar="FIGURE", required=True)
+    _add_model(kinds)
+    _add_episode(kinds)
+    _add_training(kinds)
+    _add_record(subparsers)
+
+
+def _add_model(kinds: Any) -> None:
+    parser = kinds.add_parser(
+        "model",
+        help="the tutorial's curves and the productivity heat map",
+        description="The tutorial's figures, drawn from heartpole.model: heart-attack risk vs hypertension, "
+        "alertness decay vs half-hours since sleep, crippling anxiety vs alertness, the Ballmer function, "
+        "and productivity over alertness x intoxication. Writes one PNG each into DIR (created if its "
+        "parent exists).",
+    )
+    parser.add_argument("--out", required=True, metavar="DIR", help="folder for the PNGs")
+    parser.set_defaults(handler=plot_model)
+
+
+def _add_episode(kinds: Any) -> None:
+    parser = kinds.add_parser(
+        "episode",
+        help="one episode as a dashboard",
+        description="Run one episode and draw it: the state variables over time, each decision as a marker, "
+        "sleep shaded, heart attacks marked, the running score.",
+    )
+    _add_episode_options(parser)
+    parser.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
+    parser.set_defaults(handler=plot_episode)
+
+
+def _add_training(kinds: Any) -> None:
+    parser = kinds.add_parser(
+        "training",
+        help="the learning curve of 'heartpole train'",
+        description="Plot DIR/learning_curve.csv written by 'heartpole train --out DIR': return, heart attacks "
+        "and score against timesteps. With several seeds (DIR/seed_<s>/learning_curve.csv) it draws their mean "
+        "and the range between the lowest and the highest seed.",
+    )
+    parser.add_argument("dir", metavar="DIR", help="the folder given to 'heartpole train --out'")
+    parser.add_argument("--out", metavar="FILE.png", help="the PNG to write (default: DIR/learning_curve.png)")
+    parser.set_defaults(handler=plot_training)
+
+
+def _add_record(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "record",
+        help="a video of one episode (MP4 or GIF)",
+        description="Run one episode and write its rgb_array frames as a video: the clock, alertness, blood "
+        "pressure, intoxication, hours awake, work done, the score, the last action and heart attacks. "
+        "MP4 needs imageio-ffmpeg, GIF needs Pillow (both come with heartpole[plot]).",
+    )
+    _add_episode_options(parser)
+    parser.add_argument("--fps", type=positive_int, default=8, help="frames (half-hour decisions) per second (8)")
+    parser.add_argument("--out", required=True, metavar="FILE.mp4|FILE.gif", help="the video to write")
+    parser.set_defaults(handler=record)
+
+
+def _add_episode_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--policy",
+        required=True,
+        metavar="P",
+        help="a built-in policy (random, nothing, coffee, reference, expert) or a model .zip from 'heartpole train'",
+    )
+    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (0)")
+    parser.add_argument("--steps", type=positive_int, default=None, help="decisions in the episode (the env's, 1000)")
+    parser.add_argument("--env", default=DEFAULT_ENV, metavar="ID", help=f"HeartPole env id ({DEFAULT_ENV})")
+
+
+# --------------------------------------------------------------------------------------------------------
+def _plots() -> Any:
+    """The :mod:`heartpole.plots` module, or a clear error when matplotlib is missing."""
+    from heartpole import plots
+
+    try:
+        plots.require_matplotlib()
+    except ImportError:
+        raise CommandError(f"plots need matplotlib; {INSTALL_HINT}") from None
+    return plots
+
+
+def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {} if args.steps is None else {"max_steps": args.steps}
+
+
+def _policy(args: argparse.Namespace) -> Callable[[np.ndarray], Any]:
+    """The policy named by ``--policy`` for ``--env``, or a one-line error."""
+    from heartpole.policies import load_policy
+
+    try:
+        return load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
+    except (ValueError, FileNotFoundError) as error:
+        raise CommandError(str(error)) from None
+
+
+def _write_figure(figure: Any, path: Path, plots: Any) -> None:
+    atomic_write(path, lambda temporary: plots.save_figure(figure, temporary))
+    print(f"wrote {path}")
+
+
+def _output_folder(text: str) -> Path:
+    """``--out DIR`` for several files: created if missing (not its parents), and writable."""
+    folder = Path(text)
+    if folder.exists() and not folder.is_dir():
+        raise CommandError(f"{folder} is a file, expected a folder")
+    if not folder.exists():
+        writable_path(folder)  # its parent exists and is writable
+        folder.mkdir()
+    return writable_path(folder / "figure.png").parent
+
+
+# --------------------------------------------------------------------------------------------------------
+def plot_model(args: argparse.Namespace) -> int:
+    """``heartpole plot model --out DIR``: one PNG per model figure."""
+    plots = _plots()
+    folder = _output_folder(args.out)
+    for stem, make in plots.MODEL_FIGURES.items():
+        _write_figure(make(plots.Params()), folder / f"{stem}.png", plots)
+    return 0
+
+
+def plot_episode(args: argparse.Namespace) -> int:
+    """``heartpole plot episode --policy P --out FILE.png``: one episode as a dashboard."""
+    plots = _plots()
+    target = writable_path(args.out, suffixes=[".png"])
+    policy = _policy(args)
+    trace = plots.trace_episode(policy, args.env, args.seed, **_env_kwargs(args))
+    title = (
+        f"{args.env}, policy {args.policy}, seed {args.seed}: return {trace.episode_return:.2f}, "
+        f"final score {trace.score[-1]:.3f}, heart attacks {int(trace.heart_attacks.sum())}"
+    )
+    _write_figure(plots.episode_figure(trace, title), target, plots)
+    return 0
+
+
+def plot_training(args: argparse.Namespace) -> int:
+    """``heartpole plot training DIR``: the learning curve(s) of a training run."""
+    plots = _plots()
+    folder = Path(args.dir)
+    if not folder.is_dir():
+        raise CommandError(f"{folder}: no such folder (give the folder of 'heartpole train --out')")
+    target = writable_path(args.out or folder / "learning_curve.png", suffixes=[".png"])
+    found = plots.find_learning_curves(folder)
+    if not found:
+        raise CommandError(
+            f"{folder}: no learning_curve.csv here or in seed_*/ (written by 'heartpole train --out {folder}')"
+        )
+    try:
+        curves = {label: plots.read_learning_curve(path) for label, path in found.items()}
+    except (OSError, ValueError) as error:
+        raise CommandError(str(error)) from None
+    seeds = f", {len(curves)} seeds" if len(curves) > 1 else ""
+    _write_figure(plots.training_figure(curves, f"Learning curve: {folder}{seeds}"), target, plots)
+    return 0
+
+
+def record(args: argparse.Namespace) -> int:
+    """``heartpole record --policy P --out FILE.mp4|.gif``: a video of one episode from its rgb_array frames."""
+    from heartpole import plots
+
+    target = writable_path(args.out, suffixes=list(plots.VIDEO_SUFFIXES))
+    _check_video_writer(target.suffix.lower())
+    policy = _policy(args)
+    frames = plots.episode_frames(policy, args.env, args.seed, **_env_kwargs(args))
+    total = (args.steps or _default_steps(args.env)) + 1
+    with progress(total, f"recording {target.name}") as bar:
+        count = 0
+
+        def write(temporary: Path) -> None:
+            nonlocal count
+            count = plots.write_video(_counted(frames, bar), temporary, fps=args.fps)
+
+        atomic_write(target, write)
+    print(f"wrote {target} ({count} frames, {count / args.fps:.1f} s at {args.fps} fps)")
+    return 0
+
+
+def _counted(frames: Iterator[np.ndarray], bar: Any) -> Iterator[np.ndarray]:
+    for frame in frames:
+        bar.update()
+        yield frame
+
+
+def _default_steps(env_id: str) -> int:
+    """The episode length of ``env_id`` as registered (for the progress bar)."""
+    import gymnasium as gym
+
+    try:
+        return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
+    except gym.error.Error:
+        return 1000
+
+
+def _check_video_writer(suffix: str) -> None:
+    """A clear error before any work when the writer for ``suffix`` is not installed."""
+    try:
+        if suffix == ".mp4":
+            import imageio  # noqa: F401
+            import imageio_ffmpeg  # noqa: F401
+        else:
+            import PIL  # noqa: F401
+    except ImportError:
+        needed = "imageio and imageio-ffmpeg" if suffix == ".mp4" else "Pillow"
+        raise CommandError(f"{suffix} videos need {needed}; {INSTALL_HINT}") from None

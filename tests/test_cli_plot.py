@@ -1,0 +1,187 @@
+"""``heartpole plot`` and ``heartpole record``: the files they write, and one clear line for bad input."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from heartpole import plots  # noqa: E402
+from heartpole.cli import main  # noqa: E402
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def image(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as picture:
+        return np.asarray(picture.convert("RGB"))
+
+
+def assert_error(result: tuple[int, str, str], command: str, words: str) -> None:
+    code, _, err = result
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"heartpole {command}: error:") and words in lines[0], err
+
+
+def test_plot_model_writes_every_figure(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "plot", "model", "--out", str(tmp_path / "figures"))
+    assert code == 0
+    written = sorted(p.name for p in (tmp_path / "figures").iterdir())
+    assert written == sorted(f"{stem}.png" for stem in plots.MODEL_FIGURES)
+    for name in written:
+        pixels = image(tmp_path / "figures" / name)
+        assert pixels.shape[0] >= 450 and pixels.shape[1] >= 700 and pixels.std() > 10
+        assert f"wrote {tmp_path / 'figures' / name}" in out
+
+
+def test_plot_episode_of_a_builtin_policy(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "episode.png"
+    code, out, _ = run(
+        capsys, "plot", "episode", "--policy", "reference", "--seed", "3", "--steps", "80", "--out", str(target)
+    )
+    assert code == 0 and out.strip() == f"wrote {target}"
+    pixels = image(target)
+    assert pixels.shape == (930, 1200, 3)
+    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 50
+
+
+def test_plot_episode_of_a_saved_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sb3 = pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    model = sb3.PPO("MlpPolicy", gym.make("HeartPole-v0"), n_steps=64, batch_size=64, device="cpu", seed=0)
+    model.save(tmp_path / "model.zip")
+    target = tmp_path / "model.png"
+    code, _, err = run(
+        capsys, "plot", "episode", "--policy", str(tmp_path / "model.zip"), "--steps", "30", "--out", str(target)
+    )
+    assert code == 0, err
+    assert image(target).shape == (930, 1200, 3)
+
+
+def test_plot_training_reads_the_seeds(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for seed in (0, 1):
+        folder = tmp_path / "run" / f"seed_{seed}"
+        folder.mkdir(parents=True)
+        (folder / "learning_curve.csv").write_text(
+            "timesteps,mean_return,heart_attacks,score\n"
+            f"0,{-300 - seed},2.0,0.1\n5000,{-150 + seed},1.4,0.2\n10000,{-120 + seed},1.3,0.3\n"
+        )
+    code, out, _ = run(capsys, "plot", "training", str(tmp_path / "run"))
+    target = tmp_path / "run" / "learning_curve.png"
+    assert code == 0 and out.strip() == f"wrote {target}"
+    assert image(target).shape == (420, 1200, 3)
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_record_writes_a_video(tmp_path: Path, capsys: pytest.CaptureFixture[str], suffix: str) -> None:
+    target = tmp_path / f"day{suffix}"
+    code, out, _ = run(capsys, "record", "--policy", "coffee", "--steps", "10", "--fps", "5", "--out", str(target))
+    assert code == 0 and f"wrote {target} (11 frames" in out
+    if suffix == ".gif":
+        from PIL import Image
+
+        with Image.open(target) as video:
+            assert video.n_frames == 11 and video.size == (600, 400)
+    else:
+        import imageio.v2 as imageio
+
+        with imageio.get_reader(target) as reader:
+            assert sum(1 for _ in reader) == 11
+    assert sorted(p.name for p in tmp_path.iterdir()) == [target.name]  # no temporary files left
+
+
+# --------------------------------------------------------------------------------------------------------
+# Bad input: one line, exit code 2, no files.
+def test_unknown_policy_and_missing_model(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = str(tmp_path / "x.png")
+    assert_error(run(capsys, "plot", "episode", "--policy", "sometimes", "--out", out), "plot", "unknown policy")
+    missing = str(tmp_path / "nope.zip")
+    assert_error(run(capsys, "plot", "episode", "--policy", missing, "--out", out), "plot", "not found")
+    (tmp_path / "junk.zip").write_text("not a zip")
+    assert_error(
+        run(capsys, "record", "--policy", str(tmp_path / "junk.zip"), "--out", str(tmp_path / "x.mp4")), "record", "zip"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["junk.zip"]
+
+
+def test_output_in_a_missing_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "no" / "such"
+    assert_error(
+        run(capsys, "plot", "episode", "--policy", "expert", "--out", str(missing / "e.png")), "plot", "does not exist"
+    )
+    assert_error(
+        run(capsys, "record", "--policy", "expert", "--out", str(missing / "e.mp4")), "record", "does not exist"
+    )
+    assert_error(run(capsys, "plot", "model", "--out", str(missing / "figures")), "plot", "does not exist")
+    assert_error(run(capsys, "plot", "training", str(missing)), "plot", "no such folder")
+    assert not (tmp_path / "no").exists()
+
+
+def test_output_without_permission(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode: Path(path) != locked and real_access(path, mode))
+    assert_error(run(capsys, "record", "--policy", "expert", "--out", str(locked / "v.mp4")), "record", "no permission")
+    assert_error(run(capsys, "plot", "model", "--out", str(locked)), "plot", "no permission")
+    assert not list(locked.iterdir())
+
+
+def test_unsupported_suffixes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert_error(run(capsys, "record", "--policy", "expert", "--out", str(tmp_path / "v.avi")), "record", "'.avi'")
+    assert_error(run(capsys, "record", "--policy", "expert", "--out", str(tmp_path / "video")), "record", "(none)")
+    assert_error(
+        run(capsys, "plot", "episode", "--policy", "expert", "--out", str(tmp_path / "e.jpg")), "plot", "'.jpg'"
+    )
+    assert not list(tmp_path.iterdir())
+
+
+def test_training_folder_without_curves_or_with_a_bad_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert_error(run(capsys, "plot", "training", str(tmp_path)), "plot", "no learning_curve.csv")
+    (tmp_path / "learning_curve.csv").write_text("steps,reward\n1,2\n")
+    assert_error(run(capsys, "plot", "training", str(tmp_path)), "plot", "missing column")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["learning_curve.csv"]
+
+
+def test_a_failure_while_writing_leaves_no_partial_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken_writer(frames, path, fps=8.0):
+        Path(path).write_bytes(b"half a video")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(plots, "write_video", broken_writer)
+    with pytest.raises(RuntimeError, match="disk full"):
+        main(["record", "--policy", "expert", "--steps", "3", "--out", str(tmp_path / "v.mp4")])
+    assert not list(tmp_path.iterdir())
+
+
+def test_missing_matplotlib_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def missing() -> None:
+        raise ImportError("no matplotlib")
+
+    monkeypatch.setattr(plots, "require_matplotlib", missing)
+    assert_error(run(capsys, "plot", "model", "--out", str(tmp_path)), "plot", 'pip install "heartpole[plot]"')
+
+
+def test_plot_without_a_figure_name_shows_usage(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["plot"])
+    assert exit_info.value.code == 2
+    assert "FIGURE" in capsys.readouterr().err
