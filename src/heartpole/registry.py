@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from typing import Any
@@ -72,10 +73,16 @@ _variants: set[str] = set()
 
 
 def register_envs() -> None:
-    """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered."""
+    """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered.
+
+    Gymnasium reads a higher version number as a successor and warns on every ``make("HeartPole-v0")``
+    that v0 "is out of date". Here v1 is a richer variant (the tutorial's homework), not a replacement:
+    v0 stays the reference benchmark. So that one notice, about this id only, is filtered out.
+    """
     for env_id, (entry_point, vector_entry_point) in _BUILTINS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
+    warnings.filterwarnings("ignore", r".*The environment HeartPole-v0 is out of date", DeprecationWarning)
 
 
 def register_variant(
