@@ -499,8 +499,8 @@ def _progress_callback(
     if not progress:
         yield _ignore
         return
-    from heartpole.cli.common import Progress as Bar  # the package's one progress bar, a plain utility
     from heartpole.policies import env_dynamics
+    from heartpole.progress import Progress as Bar
 
     bar = Bar(episodes * env_dynamics(env_id, env_kwargs).params.max_steps, description)
     try:

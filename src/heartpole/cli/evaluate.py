@@ -19,10 +19,10 @@ from heartpole.cli.common import (
     format_table,
     markdown_table,
     positive_int,
-    progress,
     seed_int,
     writable_path,
 )
+from heartpole.progress import progress
 
 ORDER = 10
 

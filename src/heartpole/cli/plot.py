@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.cli.common import CommandError, atomic_write, positive_int, progress, seed_int, writable_path
+from heartpole.cli.common import CommandError, atomic_write, positive_int, seed_int, writable_path
+from heartpole.progress import progress
 
 ORDER = 30
 
