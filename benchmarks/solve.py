@@ -112,18 +112,7 @@ def markdown(rows: list[dict[str, Any]], first: str) -> str:
 
 def aggregate_line(rows: list[dict[str, Any]]) -> str:
     """The interquartile mean across seeds with its bootstrap interval, in one Markdown paragraph."""
-    agg = training.aggregate(rows)
-    parts = []
-    for key, label, digits in (
-        ("heart_attacks_per_episode", "heart attacks", 3),
-        ("score", "score", 4),
-        ("mean_return", "return", 2),
-        ("expected_return", "expected-risk return", 3),
-        ("wall_seconds", "wall time (s)", 0),
-    ):
-        item = agg[key]
-        low, high = item["iqm_ci95"]
-        parts.append(f"{label} {item['iqm']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
+    parts = [f"{label} {figure}" for label, figure in training.aggregate_figures(training.aggregate(rows))]
     solved = sum(r["solved"] and r["within_limit"] for r in rows)
     return (
         f"IQM across {len(rows)} seeds [95% bootstrap CI]: " + "; ".join(parts) + f". Solved: {solved} of {len(rows)}."

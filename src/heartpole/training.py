@@ -852,6 +852,26 @@ def aggregate(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     return out
 
 
+AGGREGATE_LABELS: tuple[tuple[str, str, int], ...] = (
+    ("heart_attacks_per_episode", "heart attacks/episode", 3),
+    ("score", "score", 4),
+    ("mean_return", "return", 2),
+    ("expected_return", "expected-risk return", 3),
+    ("wall_seconds", "wall time (s)", 0),
+)
+
+
+def aggregate_figures(aggregate_: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(label, "iqm [low, high]")`` for each figure of an :func:`aggregate` result, for tables and text."""
+    figures = []
+    for key, label, digits in AGGREGATE_LABELS:
+        if key in aggregate_:
+            item = aggregate_[key]
+            low, high = item["iqm_ci95"]
+            figures.append((label, f"{item['iqm']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"))
+    return figures
+
+
 # ------------------------------------------------------------------------------------------------------
 # output folders and files
 

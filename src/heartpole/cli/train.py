@@ -244,6 +244,7 @@ def format_run(run: dict[str, Any]) -> str:
 
 def format_summary(summary: dict[str, Any]) -> str:
     """Every seed's row, then the interquartile mean across seeds with its 95% bootstrap interval."""
+    from heartpole.training import aggregate_figures
     headers = ["seed", "heart attacks/ep", "score", "return", "return 95% CI", "expected-risk return", "s", "solved"]
     rows = [
         [
@@ -260,14 +261,6 @@ def format_summary(summary: dict[str, Any]) -> str:
     ]
     agg = summary["aggregate"]
     lines = [format_table(headers, rows), "", f"across {agg['seeds']} seeds, interquartile mean [95% bootstrap CI]:"]
-    for key, label, digits in (
-        ("heart_attacks_per_episode", "heart attacks/episode", 3),
-        ("score", "score", 4),
-        ("mean_return", "return", 2),
-        ("expected_return", "expected-risk return", 3),
-    ):
-        item = agg[key]
-        low, high = item["iqm_ci95"]
-        lines.append(f"  {label:<22} {item['iqm']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]")
+    lines += [f"  {label:<22} {figure}" for label, figure in aggregate_figures(agg) if label != "wall time (s)"]
     lines.append(f"solved (heart attacks <= 1.30, score >= 0.30): {summary['solved_seeds']} of {agg['seeds']} seeds")
     return "\n".join(lines)
