@@ -4,9 +4,12 @@
     python benchmarks/speed.py --quick         # fewer repeats, fewer sizes
     python benchmarks/speed.py --only single   # one section: single, vector, scaling, flat
 
-Every figure is steps per second with random actions, the best of several interleaved repeats (the
-machine is shared; the best run is the least disturbed), and is reported as a ratio against the anchor
-measured in the same run. Actions are drawn before timing, so the figures measure the envs alone.
+Every figure is steps per second with random actions (all of an env's actions), the best of several
+interleaved repeats (the machine is shared; the best run is the least disturbed), and is reported as a
+ratio against the anchor measured in the same run. Actions are drawn before timing, so the figures
+measure the envs alone. Each measurement runs in a fresh Python process: glibc's allocator adapts its
+thresholds to the arrays a process frees, and in one process the env measured first changed the speed
+of the other by up to 25%.
 """
 
 from __future__ import annotations
@@ -14,6 +17,8 @@ from __future__ import annotations
 import argparse
 import gc
 import platform
+import subprocess
+import sys
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -50,12 +55,37 @@ def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0) -> floa
     env = make()
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    actions = [rng.integers(0, 2, size=num_envs) for _ in range(min(steps, 64))]
+    actions = [rng.integers(0, env.single_action_space.n, size=num_envs) for _ in range(min(steps, 64))]
     env.step(actions[0])  # warm-up
     start = time.perf_counter()
     for t in range(steps):
         env.step(actions[t % len(actions)])
     return steps * num_envs / (time.perf_counter() - start)
+
+
+SINGLE_ENVS: dict[str, Factory] = {
+    "CartPole-v1": CartPoleEnv,
+    "HeartPole-v0": heartpole.HeartPole,
+    "make:CartPole-v1": lambda: gym.make("CartPole-v1"),
+    "make:HeartPole-v0": lambda: gym.make("HeartPole-v0"),
+}
+VECTOR_ENVS: dict[str, Callable[[int], Any]] = {
+    "CartPoleVectorEnv": lambda n: CartPoleVectorEnv(num_envs=n),
+    "HeartPoleVectorEnv": lambda n: heartpole.HeartPoleVectorEnv(n),
+}
+
+
+def measure(env: str, num_envs: int, steps: int) -> float:
+    """One measurement in this process: a single env when ``num_envs`` is 0, else a vector env."""
+    if num_envs == 0:
+        return single_rate(SINGLE_ENVS[env], steps)
+    return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps)
+
+
+def fresh(env: str, num_envs: int, steps: int) -> Callable[[], float]:
+    """A measurement to run in a fresh Python process (see the module docstring for why)."""
+    command = [sys.executable, __file__, "--measure", env, str(num_envs), str(steps)]
+    return lambda: float(subprocess.run(command, check=True, capture_output=True, text=True).stdout)
 
 
 def best_of(repeats: int, *measurements: Callable[[], float]) -> list[float]:
@@ -77,11 +107,7 @@ def section_single(repeats: int) -> None:
     print("single env, unwrapped, random actions")
     steps = 100_000
     cartpole, heart, made_cartpole, made_heart = best_of(
-        repeats,
-        lambda: single_rate(CartPoleEnv, steps),
-        lambda: single_rate(heartpole.HeartPole, steps),
-        lambda: single_rate(lambda: gym.make("CartPole-v1"), steps),
-        lambda: single_rate(lambda: gym.make("HeartPole-v0"), steps),
+        repeats, *(fresh(env, 0, steps) for env in SINGLE_ENVS)
     )
     report("CartPole-v1 unwrapped (anchor)", cartpole, "CartPole", cartpole)
     report("HeartPole-v0 unwrapped", heart, "CartPole", cartpole, goal=3.0)
@@ -92,11 +118,7 @@ def section_single(repeats: int) -> None:
 def section_vector(repeats: int, num_envs: int = 16384) -> None:
     print(f"vector env, {num_envs} envs, random actions")
     steps = 300
-    cartpole, heart = best_of(
-        repeats,
-        lambda: vector_rate(lambda: CartPoleVectorEnv(num_envs=num_envs), num_envs, steps),
-        lambda: vector_rate(lambda: heartpole.HeartPoleVectorEnv(num_envs), num_envs, steps),
-    )
+    cartpole, heart = best_of(repeats, *(fresh(env, num_envs, steps) for env in VECTOR_ENVS))
     report("CartPoleVectorEnv (anchor)", cartpole, "CartPoleVec", cartpole)
     report("HeartPoleVectorEnv", heart, "CartPoleVec", cartpole, goal=3.0)
 
@@ -105,11 +127,7 @@ def section_scaling(repeats: int, sizes: list[int]) -> None:
     print("vector env scaling (env-steps/s; ratio against CartPoleVectorEnv of the same size)")
     for n in sizes:
         steps = max(20, min(3000, 4_000_000 // n))
-        cartpole, heart = best_of(
-            repeats,
-            lambda n=n, steps=steps: vector_rate(lambda: CartPoleVectorEnv(num_envs=n), n, steps),
-            lambda n=n, steps=steps: vector_rate(lambda: heartpole.HeartPoleVectorEnv(n), n, steps),
-        )
+        cartpole, heart = best_of(repeats, *(fresh(env, n, steps) for env in VECTOR_ENVS))
         report(f"HeartPoleVectorEnv n={n}", heart, f"CartPoleVec n={n}", cartpole)
 
 
@@ -136,7 +154,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer repeats and sizes")
     parser.add_argument("--only", choices=["single", "vector", "scaling", "flat"], help="run one section")
+    parser.add_argument("--measure", nargs=3, metavar=("ENV", "NUM_ENVS", "STEPS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.measure:
+        env, num_envs, steps = args.measure
+        print(measure(env, int(num_envs), int(steps)))
+        return
     repeats = 2 if args.quick else 5
     sizes = [1, 64, 1024, 16384] if args.quick else [1, 16, 256, 1024, 4096, 16384, 65536]
     print(f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "

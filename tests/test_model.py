@@ -68,14 +68,21 @@ def test_score_is_zero_before_time_passes() -> None:
     np.testing.assert_array_equal(model.score(np.array([0.0, 3.0]), np.array([0.0, 2.0])), [0.0, 1.5])
 
 
-def test_assign_where_on_floats_and_arrays() -> None:
-    values = [1.0, 2.0]
-    model.assign_where(values, 1, True, 5.0)
-    model.assign_where(values, 0, False, 5.0)
-    assert values == [1.0, 5.0]
-    batch = np.zeros((2, 3), dtype=np.float32)
-    model.assign_where(batch, 1, np.array([True, False, True]), np.array([1.0, 2.0, 3.0]))
-    np.testing.assert_array_equal(batch[1], [1.0, 0.0, 3.0])
+def test_formulas_leave_their_array_arguments_untouched() -> None:
+    # The formulas compute in place on their own temporaries; a slip would overwrite the caller's state.
+    state = {name: np.linspace(-2.0, 9.0, 50, dtype=np.float32) for name in ("a", "i", "h", "t", "c")}
+    before = {name: values.copy() for name, values in state.items()}
+    model.productivity(state["a"], state["i"], state["c"])
+    model.productivity(state["a"], state["i"])
+    model.heart_attack_risk(state["h"], 0.5)
+    model.alertness_decay(state["t"])
+    model.crippling_anxiety(state["a"])
+    model.ballmer(state["i"])
+    model.gaussian(state["i"], 0.135, 0.005)
+    model.sigmoid(state["a"])
+    model.score(state["a"], state["t"])
+    for name, values in state.items():
+        np.testing.assert_array_equal(values, before[name], err_msg=name)
 
 
 @pytest.mark.parametrize(

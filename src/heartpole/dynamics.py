@@ -37,7 +37,6 @@ from heartpole.model import (
     Params,
     Variable,
     alertness_decay,
-    assign_where,
     heart_attack_risk,
     productivity,
     score,
@@ -45,20 +44,27 @@ from heartpole.model import (
 
 
 class ActionRecord(NamedTuple):
-    """What one action (Python scalars) or a batch of actions (arrays) does in a step.
+    """What one action (Python scalars) or a batch of actions (arrays, one value per env) does in a step.
 
     ``effects`` lists ``(variable, low, width, uniform_column)``: the variable gains ``low + width * u``.
-    ``any_rest`` and ``any_wake`` let a step skip what no action of the batch needs.
+    ``any_rest`` and ``any_wake`` let a step skip what no action of the batch needs. ``wakes`` and
+    ``stays_awake`` are 1.0 or 0.0 (one is the other's complement) so that waking up is arithmetic.
     """
 
     effects: tuple[tuple[int, Any, Any, int], ...]
     any_rest: bool
     rest: Any
-    wakes: Any
     any_wake: bool
+    wakes: Any
+    stays_awake: Any
     drowsy_rest: Any
     fades: Any
 
+
+# time_since_slept counts whole half-hours, so the single env reads fact 6's decay from the formula's own
+# values; from about 415 on, the float64 sigmoid is exactly 1.0.
+DECAY_TABLE_SIZE = 1024
+DECAY_TABLE: tuple[float, ...] = tuple(alertness_decay(float(t)) for t in range(DECAY_TABLE_SIZE))
 
 # Variables the step keeps itself; an action may not write to them.
 BOOKKEEPING = ("time_since_slept", "time_elapsed", "work_done")
@@ -93,17 +99,16 @@ class Dynamics:
     # compilation: what each action does, as a record for one action or a table for a batch
     def _compile(self) -> None:
         index = {name: i for i, name in enumerate(self.names)}
-        affected = sorted({index[name] for action in self.actions for name in action.effects})
-        self.random_variables: tuple[int, ...] = tuple(affected)
-        self.wake_uniform = len(affected)
-        self.attack_uniform = len(affected) + 1
-        self.num_uniforms = len(affected) + 2
+        self.random_variables: tuple[int, ...] = tuple(
+            sorted({index[name] for action in self.actions for name in action.effects})
+        )
+        self._assign_uniform_columns()
         self.fading = tuple(
             (i, factor) for i, v in enumerate(self.variables) if (factor := v.decay_factor(self.params)) is not None
         )
         self.floored = tuple(
             (i, self.variables[i].low)
-            for i in affected
+            for i in self.random_variables
             if math.isfinite(self.variables[i].low)
             and any(a.effects.get(self.names[i], (0.0, 0.0))[0] < 0 for a in self.actions)
         )
@@ -111,51 +116,56 @@ class Dynamics:
         self.calming = tuple((i, float(v.anxiety_relief)) for i, v in enumerate(self.variables) if v.anxiety_relief)
         wake_low, wake_high = self.params.wake_alertness
         self._wake_low, self._wake_width = wake_low, wake_high - wake_low
-        self._records = tuple(self._record_of(action) for action in self.actions)
-        self._columns = _BatchColumns(np.array([self._row_of(action) for action in self.actions]).T)
+        self._penalty = self.params.heart_attack_penalty
+        self._records = tuple(ActionRecord(*self._fields_of(action)) for action in self.actions)
+        self._table = _BatchTable([self._fields_of(action) for action in self.actions])
 
-    def _record_of(self, action: Action) -> ActionRecord:
-        """The single-state record of ``action``: only the effects it has, rest and sleep as Python scalars."""
+    def _assign_uniform_columns(self) -> None:
+        """One uniform column per randomly changed variable, shared by variables no action changes together.
+
+        Waking up (fact 1) shares a column with variables no sleeping action changes; the heart-attack coin
+        (fact 4) has its own. v0 needs four columns: alertness (and waking), hypertension, intoxication, coin.
+        """
+        waking = -1  # stands for the wake-up draw of a sleeping action
+        together = [
+            {self.names.index(name) for name in a.effects} | ({waking} if a.sleeps else set()) for a in self.actions
+        ]
+        column: dict[int, int] = {}
+        for variable in (*self.random_variables, waking):
+            taken = {column[other] for used in together if variable in used for other in used if other in column}
+            column[variable] = next(c for c in range(len(column) + 1) if c not in taken)
+        self.uniform_column = {i: column[i] for i in self.random_variables}
+        self.wake_uniform = column[waking]
+        self.attack_uniform = max(column.values()) + 1
+        self.num_uniforms = self.attack_uniform + 1
+
+    def _fields_of(self, action: Action) -> tuple[Any, ...]:
+        """The :class:`ActionRecord` of ``action`` for a single state: only the effects it has, as floats."""
         effects = tuple(
-            (i, low, high - low, k)
-            for k, i in enumerate(self.random_variables)
+            (i, low, high - low, self.uniform_column[i])
+            for i in self.random_variables
             for low, high in [action.effects.get(self.names[i], (0.0, 0.0))]
             if (low, high) != (0.0, 0.0)
         )
-        rest, drowsy = self._rest_of(action)
-        fades = tuple(factor**rest for _, factor in self.fading)
-        return ActionRecord(effects, rest > 0, float(rest), action.sleeps, action.sleeps, float(drowsy), fades)
-
-    def _row_of(self, action: Action) -> list[float]:
-        """The batch-table column of ``action``: effect (low, width) per random variable, rest, wake, fades."""
-        row: list[float] = []
-        for i in self.random_variables:
-            low, high = action.effects.get(self.names[i], (0.0, 0.0))
-            row += [low, high - low]
-        rest, drowsy = self._rest_of(action)
-        return row + [rest, float(action.sleeps), drowsy] + [factor**rest for _, factor in self.fading]
-
-    def _rest_of(self, action: Action) -> tuple[int, int]:
-        """Half-hours without work, and those of them in which alertness decays (none if it then wakes)."""
         rest = action.rest_half_hours + (self.params.sleep_half_hours if action.sleeps else 0)
-        return rest, 0 if action.sleeps else action.rest_half_hours
+        drowsy = 0 if action.sleeps else action.rest_half_hours  # no drain if it wakes up fresh after
+        fades = tuple(factor**rest for _, factor in self.fading)
+        wakes = float(action.sleeps)
+        return effects, rest > 0, float(rest), action.sleeps, wakes, 1.0 - wakes, float(drowsy), fades
 
     def record(self, action: Any) -> ActionRecord:
-        """What ``action`` does: precomputed for one action index, gathered from the table for an array."""
+        """What ``action`` does: precomputed for one action index, looked up per env for an index array."""
         if type(action) is int:
             return self._records[action]
-        columns = self._columns.gather(action)
-        effects = tuple((i, columns[2 * k], columns[2 * k + 1], k) for k, i in enumerate(self.random_variables))
-        r = 2 * len(self.random_variables)
-        rest, wakes = columns[r], np.not_equal(columns[r + 1], 0)
-        any_rest, any_wake = bool(np.any(rest)), bool(np.any(wakes))
-        return ActionRecord(effects, any_rest, rest, wakes, any_wake, columns[r + 2], columns[r + 3 :])
+        return self._table.lookup(action)
 
     # ----------------------------------------------------------------------------------------------------
     # states
     def wake_alertness(self, uniform: Any) -> Any:
         """Fact 1: alertness on waking up, from a uniform draw in [0, 1)."""
-        return self._wake_low + self._wake_width * uniform
+        alertness = self._wake_width * uniform
+        alertness += self._wake_low
+        return alertness
 
     def initial_state(self, wake_uniform: Any) -> Any:
         """Fact 0 then fact 1: all variables 0, then waking up. A float gives a list, an array a batch."""
@@ -172,27 +182,35 @@ class Dynamics:
         """Advance ``state`` in place by one decision and its half-hour of work.
 
         Args:
-            state: a list of floats, or a ``(num_variables, num_envs)`` float32 array.
+            state: a list of floats, or a ``(num_variables, num_envs)`` float32 array (or a list of its rows).
             action: a valid action index (``int``), or an integer array of them (validated by the caller).
             uniforms: ``num_uniforms`` uniform draws in [0, 1), or a ``(num_uniforms, num_envs)`` array.
 
         Returns:
             ``(reward, productivity, heart_attack_risk, heart_attack, score)``, floats or arrays.
         """
-        s, u, act = state, uniforms, self.record(action)
+        # Every update is an augmented assignment: on a batch it writes into the state's rows in place.
+        s = state if type(state) is list else list(state)
+        u = uniforms
+        act = self._records[action] if type(action) is int else self._table.lookup(action)
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
         for i, low, width, k in act.effects:  # facts 2 and 3
-            s[i] += low + width * u[k]
+            width *= u[k]  # a float, or this step's own looked-up row
+            width += low
+            s[i] += width
         for i, low in self.floored:
-            assign_where(s, i, s[i] < low, low)
+            _raise_to(s, i, low)
         if act.any_rest:
             self._rest(s, act)
-        if act.any_wake:  # fact 1
-            assign_where(s, ALERTNESS, act.wakes, self.wake_alertness(u[self.wake_uniform]))
-            assign_where(s, TIME_SINCE_SLEPT, act.wakes, 0.0)
+        if act.any_wake:  # fact 1: fresh alertness and a new day
+            woken = self.wake_alertness(u[self.wake_uniform])
+            woken *= act.wakes
+            s[ALERTNESS] *= act.stays_awake
+            s[ALERTNESS] += woken
+            s[TIME_SINCE_SLEPT] *= act.stays_awake
         worked = productivity(s[ALERTNESS], s[INTOXICATION], self._calm(s) if self.calming else None)  # facts 7, 8
         s[WORK_DONE] += worked
-        s[ALERTNESS] -= alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
+        s[ALERTNESS] -= self._alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
         for i, factor in self.fading:
             s[i] *= factor
         s[TIME_SINCE_SLEPT] += 1.0
@@ -202,8 +220,14 @@ class Dynamics:
         coin = u[self.attack_uniform]
         attack = coin < risk
         s[HYPERTENSION] *= coin >= risk  # a heart attack resets blood pressure to 0
-        reward = new_score - old_score - self.params.heart_attack_penalty * attack
+        reward = _lose_where(new_score - old_score, self._penalty, attack)
         return reward, worked, risk, attack, new_score
+
+    def _alertness_decay(self, time_since_slept: Any) -> Any:
+        """Fact 6's decay; for one state, looked up in a table of the formula's values at whole half-hours."""
+        if type(time_since_slept) is float and time_since_slept < DECAY_TABLE_SIZE:
+            return DECAY_TABLE[int(time_since_slept)]
+        return alertness_decay(time_since_slept)
 
     def _calm(self, s: Any) -> Any:
         """Anxiety relief from the variables that bring it (v1's THC): ``sum(anxiety_relief * value)``."""
@@ -215,7 +239,9 @@ class Dynamics:
     def _rest(self, s: Any, act: ActionRecord) -> None:
         """Half-hours without work (sleep, naps): alertness decays unless waking follows; fading goes on."""
         for k in range(self.max_drowsy_rest):
-            s[ALERTNESS] -= (k < act.drowsy_rest) * alertness_decay(s[TIME_SINCE_SLEPT] + k)
+            drain = self._alertness_decay(s[TIME_SINCE_SLEPT] + k)
+            drain *= k < act.drowsy_rest
+            s[ALERTNESS] -= drain
         for (i, _), factor in zip(self.fading, act.fades):
             s[i] *= factor
         s[TIME_SINCE_SLEPT] += act.rest
@@ -230,34 +256,77 @@ class Dynamics:
         raise ValueError(f"unknown action {name!r}; this variant has {[a.name for a in self.actions]}")
 
 
-class _BatchColumns:
-    """The per-action table for batches, gathering only the rows that differ between actions.
+def _raise_to(s: Any, i: int, low: float) -> None:
+    """``s[i] = max(s[i], low)``, in place for a batch's row."""
+    if type(s[i]) is float:
+        s[i] = s[i] if s[i] > low else low
+    else:
+        np.maximum(s[i], low, out=s[i])
 
-    A gather costs about a nanosecond per env and row, so rows equal for every action stay Python
-    floats, and rows equal to each other are gathered once.
+
+class _BatchTable:
+    """The actions' :class:`ActionRecord` fields as one float32 table, looked up for a batch in one product.
+
+    Fields equal for every action stay Python floats. The others are rows of a ``(rows, num_actions)``
+    table; a batch's values are ``table @ one_hot(actions)``: one matrix product for all of them, which
+    costs less than a gather per row. The product is written into buffers kept from step to step (fresh
+    arrays this large cost page faults on every step); the step may overwrite them.
     """
 
-    def __init__(self, table: np.ndarray) -> None:
-        self._constants: dict[int, float] = {}
-        self._unique: list[np.ndarray] = []
-        self._source: dict[int, int] = {}
-        for r, row in enumerate(table):
-            if np.all(row == row[0]):
-                self._constants[r] = float(row[0])
-                continue
-            for j, seen in enumerate(self._unique):
-                if np.array_equal(seen, row.astype(np.float32)):
-                    self._source[r] = j
-                    break
-            else:
-                self._source[r] = len(self._unique)
-                self._unique.append(row.astype(np.float32))
-        self._rows = len(table)
+    def __init__(self, fields: list[tuple[Any, ...]]) -> None:
+        first = fields[0]
+        self._effect_keys = sorted({(i, k) for f in fields for i, _, _, k in f[0]})
+        columns = [self._flatten(f) for f in fields]
+        self._constant = [len(set(values)) == 1 for values in zip(*columns)]
+        varying = [values for values, constant in zip(zip(*columns), self._constant) if not constant]
+        self._table = np.array(varying, dtype=np.float32).reshape(len(varying), len(fields))
+        self._first = self._flatten(first)
+        self._num_fades = len(first[7])
+        self._action_column = np.arange(len(fields))[:, None]
+        self._resting = [a for a, f in enumerate(fields) if f[1]]
+        self._waking = [a for a, f in enumerate(fields) if f[3]]
+        self._buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
-    def gather(self, action: np.ndarray) -> list[Any]:
-        """Row ``r`` of the result: a float, or the row's value for each env's action."""
-        gathered = [row.take(action) for row in self._unique]
-        return [self._constants[r] if r in self._constants else gathered[self._source[r]] for r in range(self._rows)]
+    def _flatten(self, f: tuple[Any, ...]) -> list[float]:
+        effects = {(i, k): (low, width) for i, low, width, k in f[0]}
+        values: list[float] = []
+        for key in self._effect_keys:
+            values += effects.get(key, (0.0, 0.0))
+        return values + [f[2], f[4], f[5], f[6], *f[7]]
+
+    def lookup(self, action: np.ndarray) -> ActionRecord:
+        """The record of a batch of (valid) actions: a float or a float32 row of ``len(action)`` per field."""
+        is_action, one_hot, rows = self._buffers_for(len(action))
+        np.equal(self._action_column, action, out=is_action)
+        present = is_action.any(axis=1).tolist()
+        if len(rows):
+            np.copyto(one_hot, is_action)
+            np.matmul(self._table, one_hot, out=rows)
+        remaining = iter(rows)
+        values = [first if constant else next(remaining) for first, constant in zip(self._first, self._constant)]
+        effects = tuple((i, values[2 * j], values[2 * j + 1], k) for j, (i, k) in enumerate(self._effect_keys))
+        rest, wakes, stays_awake, drowsy = values[2 * len(self._effect_keys) : 2 * len(self._effect_keys) + 4]
+        fades = values[len(values) - self._num_fades :]
+        any_rest = any(present[a] for a in self._resting)
+        any_wake = any(present[a] for a in self._waking)
+        return ActionRecord(effects, any_rest, rest, any_wake, wakes, stays_awake, drowsy, fades)
+
+    def _buffers_for(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._buffers is None or self._buffers[0].shape[1] != n:
+            m = len(self._action_column)
+            self._buffers = (
+                np.empty((m, n), dtype=bool),
+                np.empty((m, n), dtype=np.float32),
+                np.empty((len(self._table), n), dtype=np.float32),
+            )
+        return self._buffers
+
+
+def _lose_where(reward: Any, penalty: float, condition: Any) -> Any:
+    """``reward - penalty`` where ``condition`` holds, in place for arrays."""
+    if type(condition) is bool:
+        return reward - penalty if condition else reward
+    return np.subtract(reward, penalty, out=reward, where=condition)
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:

@@ -21,12 +21,15 @@ class HeartPoleVectorEnv(VectorEnv):
     """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
 
     The same :class:`heartpole.dynamics.Dynamics` as :class:`heartpole.HeartPole` runs on a
-    ``(num_variables, num_envs)`` float32 state, drawing all of a step's random numbers with one call to
-    ``self.np_random``. Keyword arguments are the single env's.
+    ``(num_variables, num_envs)`` float32 state, updated in place, with one row of float32 uniforms per
+    random column drawn from ``self.np_random`` (23 random bits each; see :func:`uniform_rows`). Keyword
+    arguments are the single env's.
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
-    ``info`` holds arrays of ``num_envs`` values (``heart_attack``, ``heart_attack_risk``,
-    ``productivity``, ``score``), each with Gymnasium's ``_key`` mask.
+    Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
+    variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows. ``info`` holds arrays of
+    ``num_envs`` values (``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with
+    Gymnasium's ``_key`` masks (one shared mask array: every key is present for the same envs).
 
     Autoreset: by default Gymnasium's ``NEXT_STEP`` mode. An env whose episode was truncated is reset by
     the *next* call to ``step``, which ignores its action and returns its first observation with reward 0
@@ -92,16 +95,15 @@ class HeartPoleVectorEnv(VectorEnv):
         self._last_actions[:] = -1
         self._last_attacks[:] = False
         self._heart_attacks[:] = 0
-        return self._state.T.copy(), {}
+        return self._observations(), {}
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its action; see the class docstring for autoreset and ``info``."""
         action = self._validate(actions)
         if self._state is None:
             raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
-        uniforms = self.np_random.random((self.dynamics.num_uniforms, self.num_envs), dtype=np.float32)
+        uniforms = uniform_rows(self.np_random, self.dynamics.num_uniforms, self.num_envs)
         reward, worked, risk, attack, new_score = self.dynamics.transition(self._state, action, uniforms)
-        reward = reward.astype(np.float32)
         self._steps += 1
         truncated = self._steps >= self.max_steps
         terminated = np.zeros(self.num_envs, dtype=bool)
@@ -116,7 +118,7 @@ class HeartPoleVectorEnv(VectorEnv):
             info = self._masked(info, None)
         self._last_actions, self._last_attacks = action, attack
         self._heart_attacks += attack
-        obs = self._state.T.copy()
+        obs = self._observations()
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
             if truncated.any():
                 info["final_obs"] = np.where(truncated[:, None], obs, np.nan).astype(np.float32)
@@ -124,7 +126,7 @@ class HeartPoleVectorEnv(VectorEnv):
                 info["final_info"] = {k: v for k, v in info.items() if not k.startswith(("final", "_final"))}
                 info["_final_info"] = truncated.copy()
                 self._restart(truncated, self.np_random.random(self.num_envs, dtype=np.float32))
-                obs = self._state.T.copy()
+                obs = self._observations()
         else:
             self._needs_reset = truncated.copy()
         return obs, reward, terminated, truncated, info
@@ -150,6 +152,11 @@ class HeartPoleVectorEnv(VectorEnv):
         return tuple(frames)
 
     # ----------------------------------------------------------------------------------------------------
+    def _observations(self) -> np.ndarray:
+        """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s."""
+        assert self._state is not None
+        return self._state.copy().T
+
     def _restart(self, which: np.ndarray, wake_uniforms: np.ndarray) -> None:
         assert self._state is not None
         self._state[:, which] = self.dynamics.initial_state(wake_uniforms[which])
@@ -159,9 +166,10 @@ class HeartPoleVectorEnv(VectorEnv):
     @staticmethod
     def _masked(info: dict[str, Any], mask: np.ndarray | None) -> dict[str, Any]:
         out: dict[str, Any] = {}
+        present = np.ones(len(next(iter(info.values()))), dtype=bool) if mask is None else mask.copy()
         for key, value in info.items():
             out[key] = value
-            out["_" + key] = np.ones(len(value), dtype=bool) if mask is None else mask.copy()
+            out["_" + key] = present  # one mask for all keys: every key is present for the same envs
         return out
 
     def _validate(self, actions: Any) -> np.ndarray:
@@ -173,8 +181,38 @@ class HeartPoleVectorEnv(VectorEnv):
             raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got shape {array.shape}")
         if array.dtype.kind not in "iu":
             raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got dtype {array.dtype}")
-        if n and (array.min() < 0 or array.max() >= num_actions):
+        index = array.astype(np.intp, copy=False)
+        if n and index.view(np.uintp).max() >= num_actions:  # negative indices wrap around to huge ones
             raise ValueError(
                 f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
             )
-        return array.astype(np.intp, copy=False)
+        return index
+
+
+def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.ndarray]:
+    """``rows`` float32 arrays of ``num_envs`` uniforms in [0, 1), 23 random bits each, drawn from ``rng``.
+
+    Each 64-bit draw of ``rng``'s bit generator gives two uniforms: the top 23 bits of a 32-bit half become
+    the mantissa of a float in [1, 2), then 1 is subtracted (exact). This is about twice as fast as
+    ``rng.random(dtype=np.float32)`` (24 bits), and the draws were the vector env's largest cost. Rows are
+    drawn in blocks of at most 64 kB: blocks that small are recycled by the memory allocator instead of
+    being page-faulted in afresh on every step.
+    """
+    per_block = max(1, DRAW_BLOCK_VALUES // num_envs)
+    drawn: list[np.ndarray] = []
+    for start in range(0, rows, per_block):
+        count = min(per_block, rows - start)
+        drawn.extend(_uniforms(rng, count * num_envs).reshape(count, num_envs))
+    return drawn
+
+
+DRAW_BLOCK_VALUES = 16384
+
+
+def _uniforms(rng: np.random.Generator, n: int) -> np.ndarray:
+    bits = rng.bit_generator.random_raw((n + 1) // 2).view(np.uint32)[:n]
+    bits >>= 9
+    bits |= 0x3F800000  # the exponent of 1.0
+    uniforms = bits.view(np.float32)
+    uniforms -= 1.0
+    return uniforms
