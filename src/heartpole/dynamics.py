@@ -191,8 +191,7 @@ class Dynamics:
         """
         # Every update is an augmented assignment: on a batch it writes into the state's rows in place.
         s = state if type(state) is list else list(state)
-        u = uniforms
-        act = self._records[action] if type(action) is int else self._table.lookup(action)
+        u, act = uniforms, self.record(action)
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
         for i, low, width, k in act.effects:  # facts 2 and 3
             width *= u[k]  # a float, or this step's own looked-up row

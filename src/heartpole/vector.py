@@ -189,6 +189,9 @@ class HeartPoleVectorEnv(VectorEnv):
         return index
 
 
+DRAW_BLOCK_VALUES = 16384  # uniforms per draw: 64 kB of float32, below glibc's mmap threshold
+
+
 def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.ndarray]:
     """``rows`` float32 arrays of ``num_envs`` uniforms in [0, 1), 23 random bits each, drawn from ``rng``.
 
@@ -204,9 +207,6 @@ def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.
         count = min(per_block, rows - start)
         drawn.extend(_uniforms(rng, count * num_envs).reshape(count, num_envs))
     return drawn
-
-
-DRAW_BLOCK_VALUES = 16384
 
 
 def _uniforms(rng: np.random.Generator, n: int) -> np.ndarray:
