@@ -182,26 +182,68 @@ class Dynamics:
         """Advance ``state`` in place by one decision and its half-hour of work.
 
         Args:
-            state: a list of floats, or a ``(num_variables, num_envs)`` float32 array (or a list of its rows).
+            state: a list of floats (one state), or a ``(num_variables, num_envs)`` float32 array (a batch).
             action: a valid action index (``int``), or an integer array of them (validated by the caller).
             uniforms: ``num_uniforms`` uniform draws in [0, 1), or a ``(num_uniforms, num_envs)`` array.
 
         Returns:
             ``(reward, productivity, heart_attack_risk, heart_attack, score)``, floats or arrays.
         """
-        # Every update is an augmented assignment: on a batch it writes into the state's rows in place.
-        s = state if type(state) is list else list(state)
-        u, act = uniforms, self.record(action)
+        if type(state) is list:
+            return self.transition_one(state, action, uniforms)
+        return self.transition_batch(state, action, uniforms)
+
+    def transition_one(
+        self, s: list[float], action: int, u: Sequence[float]
+    ) -> tuple[float, float, float, bool, float]:
+        """:meth:`transition` for one state: Python floats, branches instead of masks (the single env's path)."""
+        act = self._records[action]
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
         for i, low, width, k in act.effects:  # facts 2 and 3
-            width *= u[k]  # a float, or this step's own looked-up row
+            s[i] += low + width * u[k]
+        for i, low in self.floored:
+            if s[i] < low:
+                s[i] = low
+        if act.any_rest:
+            self._rest(s, act)
+            if act.any_wake:  # fact 1: fresh alertness and a new day
+                s[ALERTNESS] = self.wake_alertness(u[self.wake_uniform])
+                s[TIME_SINCE_SLEPT] = 0.0
+        alertness, time_since_slept = s[ALERTNESS], s[TIME_SINCE_SLEPT]
+        worked = productivity(alertness, s[INTOXICATION], self._calm(s) if self.calming else None)  # facts 7, 8
+        s[WORK_DONE] += worked
+        s[ALERTNESS] = alertness - (  # the half-hour passes: facts 5 and 6
+            DECAY_TABLE[int(time_since_slept)]
+            if time_since_slept < DECAY_TABLE_SIZE
+            else alertness_decay(time_since_slept)
+        )
+        for i, factor in self.fading:
+            s[i] *= factor
+        s[TIME_SINCE_SLEPT] = time_since_slept + 1.0
+        s[TIME_ELAPSED] += 1.0
+        new_score = score(s[WORK_DONE], s[TIME_ELAPSED])
+        risk = heart_attack_risk(s[HYPERTENSION], self.params.heart_attack_proclivity)  # fact 4
+        if u[self.attack_uniform] < risk:
+            s[HYPERTENSION] = 0.0  # a heart attack resets blood pressure to 0
+            return new_score - old_score - self._penalty, worked, risk, True, new_score
+        return new_score - old_score, worked, risk, False, new_score
+
+    def transition_batch(
+        self, state: np.ndarray | Sequence[np.ndarray], action: np.ndarray, u: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`transition` for a batch: float32 rows updated in place, masks instead of branches."""
+        s = list(state)  # the rows: every update below is an augmented assignment, in place
+        act = self._table.lookup(action)
+        old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
+        for i, low, width, k in act.effects:  # facts 2 and 3
+            width *= u[k]  # this step's own looked-up row
             width += low
             s[i] += width
         for i, low in self.floored:
-            _raise_to(s, i, low)
+            np.maximum(s[i], low, out=s[i])
         if act.any_rest:
             self._rest(s, act)
-        if act.any_wake:  # fact 1: fresh alertness and a new day
+        if act.any_wake:  # fact 1: fresh alertness and a new day, where the action sleeps
             woken = self.wake_alertness(u[self.wake_uniform])
             woken *= act.wakes
             s[ALERTNESS] *= act.stays_awake
@@ -209,7 +251,7 @@ class Dynamics:
             s[TIME_SINCE_SLEPT] *= act.stays_awake
         worked = productivity(s[ALERTNESS], s[INTOXICATION], self._calm(s) if self.calming else None)  # facts 7, 8
         s[WORK_DONE] += worked
-        s[ALERTNESS] -= self._alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
+        s[ALERTNESS] -= alertness_decay(s[TIME_SINCE_SLEPT])  # the half-hour passes: facts 5 and 6
         for i, factor in self.fading:
             s[i] *= factor
         s[TIME_SINCE_SLEPT] += 1.0
@@ -219,7 +261,8 @@ class Dynamics:
         coin = u[self.attack_uniform]
         attack = coin < risk
         s[HYPERTENSION] *= coin >= risk  # a heart attack resets blood pressure to 0
-        reward = _lose_where(new_score - old_score, self._penalty, attack)
+        reward = new_score - old_score
+        np.subtract(reward, self._penalty, out=reward, where=attack)
         return reward, worked, risk, attack, new_score
 
     def _alertness_decay(self, time_since_slept: Any) -> Any:
@@ -253,14 +296,6 @@ class Dynamics:
             if action.name == name:
                 return i
         raise ValueError(f"unknown action {name!r}; this variant has {[a.name for a in self.actions]}")
-
-
-def _raise_to(s: Any, i: int, low: float) -> None:
-    """``s[i] = max(s[i], low)``, in place for a batch's row."""
-    if type(s[i]) is float:
-        s[i] = s[i] if s[i] > low else low
-    else:
-        np.maximum(s[i], low, out=s[i])
 
 
 class _BatchTable:
@@ -319,13 +354,6 @@ class _BatchTable:
                 np.empty((len(self._table), n), dtype=np.float32),
             )
         return self._buffers
-
-
-def _lose_where(reward: Any, penalty: float, condition: Any) -> Any:
-    """``reward - penalty`` where ``condition`` holds, in place for arrays."""
-    if type(condition) is bool:
-        return reward - penalty if condition else reward
-    return np.subtract(reward, penalty, out=reward, where=condition)
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:

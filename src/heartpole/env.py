@@ -21,6 +21,7 @@ from heartpole.model import Params, Variable
 DRAW_BLOCK_STEPS = 256
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
+_FLOAT32 = np.dtype(np.float32)  # passed positionally: np.array(state, _FLOAT32) is the step's largest cost
 
 
 def observation_space(dynamics: Dynamics) -> spaces.Box:
@@ -171,6 +172,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self.observation_space = observation_space(self.dynamics)
         self._state: list[float] | None = None
         self._action_names = tuple(a.name for a in self.dynamics.actions)
+        self._num_actions = len(self._action_names)
+        self._transition = self.dynamics.transition_one
         self._draws: list[list[float]] = []
         self._next_draw = 0
         self._steps = 0
@@ -203,35 +206,26 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._log.clear()
         if self.render_mode == "human":
             self.render()
-        return np.array(self._state, dtype=np.float32), {}
+        return np.array(self._state, _FLOAT32), {}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
-        index = action if type(action) is int and 0 <= action < len(self.dynamics.actions) else self._index(action)
-        if self._state is None:
+        index = action if type(action) is int and 0 <= action < self._num_actions else self._index(action)
+        state = self._state
+        if state is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
         if self._next_draw == len(self._draws):
             self._draw_block()
+        uniforms = self._draws[self._next_draw]
         self._next_draw += 1
-        uniforms = self._draws[self._next_draw - 1]
-        reward, worked, risk, attack, new_score = self.dynamics.transition(self._state, index, uniforms)
+        reward, worked, risk, attack, new_score = self._transition(state, index, uniforms)
         self._steps += 1
         name = self._action_names[index]
-        self._last_action, self._last_attack = name, attack
-        self._heart_attacks += attack
-        info = {
-            "action": name,
-            "heart_attack": attack,
-            "heart_attack_risk": risk,
-            "productivity": worked,
-            "score": new_score,
-        }
-        if self.render_mode in ("ansi", "human"):
-            self._log.append((name, tuple(self._state), attack))  # formatted only when rendered
-            if self.render_mode == "human":
-                self.render()
-        obs = np.array(self._state, dtype=np.float32)
-        return obs, reward, False, self._steps >= self.max_steps, info
+        if self.render_mode is not None:
+            self._remember(name, attack)
+        info = {"action": name, "heart_attack": attack, "heart_attack_risk": risk, "productivity": worked,
+                "score": new_score}
+        return np.array(state, _FLOAT32), reward, False, self._steps >= self.max_steps, info
 
     def render(self) -> str | np.ndarray | None:
         """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""
@@ -258,6 +252,15 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         return text
 
     # ----------------------------------------------------------------------------------------------------
+    def _remember(self, name: str, attack: bool) -> None:
+        """Keep what rendering shows of the last step: the action, the heart attack and the text log."""
+        self._last_action, self._last_attack = name, attack
+        self._heart_attacks += attack
+        if self.render_mode in ("ansi", "human"):
+            self._log.append((name, tuple(self._state or ()), attack))  # formatted only when rendered
+            if self.render_mode == "human":
+                self.render()
+
     def _draw_block(self) -> None:
         """Draw the uniforms of the next ``DRAW_BLOCK_STEPS`` steps with one call to ``self.np_random``."""
         block = self.np_random.random((DRAW_BLOCK_STEPS, self.dynamics.num_uniforms))
