@@ -212,11 +212,7 @@ class Dynamics:
         alertness, time_since_slept = s[ALERTNESS], s[TIME_SINCE_SLEPT]
         worked = productivity(alertness, s[INTOXICATION], self._calm(s) if self.calming else None)  # facts 7, 8
         s[WORK_DONE] += worked
-        s[ALERTNESS] = alertness - (  # the half-hour passes: facts 5 and 6
-            DECAY_TABLE[int(time_since_slept)]
-            if time_since_slept < DECAY_TABLE_SIZE
-            else alertness_decay(time_since_slept)
-        )
+        s[ALERTNESS] = alertness - self._alertness_decay(time_since_slept)  # the half-hour passes: facts 5, 6
         for i, factor in self.fading:
             s[i] *= factor
         s[TIME_SINCE_SLEPT] = time_since_slept + 1.0
