@@ -196,6 +196,8 @@ class HeartPoleVectorEnv(VectorEnv):
 # A step's arrays (state, draws, action table, temporaries, results) add up to about this many rows of
 # num_envs float32 values.
 STEP_MEMORY_ROWS = 64
+# glibc raises its thresholds only for a freed block of at most 32 MiB, its header and page rounding included.
+LARGEST_THRESHOLD = 2**25 - 2**12
 
 
 def keep_step_memory(num_bytes: int) -> None:
@@ -205,10 +207,10 @@ def keep_step_memory(num_bytes: int) -> None:
     the fresh arrays of every step were page-faulted in again: about 140 page faults a step at 16,384 envs,
     a third of the step's time. Freeing one block that was allocated with ``mmap`` (here, an untouched
     ``np.empty`` of ``num_bytes``) raises glibc's mmap and trim thresholds to its size and twice that
-    (mallopt(3), "dynamic mmap threshold"), as freeing any large array does in a program; past 32 MB glibc
-    no longer adjusts. Other allocators are not affected.
+    (mallopt(3), "dynamic mmap threshold"), as freeing any large array does in a program. glibc ignores
+    blocks over 32 MiB, so the block is capped just below. Other allocators are not affected.
     """
-    np.empty(num_bytes, dtype=np.uint8)  # allocated and freed at once; its pages are never touched
+    np.empty(min(num_bytes, LARGEST_THRESHOLD), dtype=np.uint8)  # allocated, freed, its pages never touched
 
 
 DRAW_BLOCK_VALUES = 16384  # uniforms per draw: 64 kB of float32, below glibc's mmap threshold
