@@ -112,7 +112,29 @@ def test_adapter_answers_vecenv_queries() -> None:
     assert venv.get_attr("max_steps", indices=1) == [1000]
     assert venv.env_is_wrapped(gym.Wrapper) == [False, False]
     assert venv.render_mode is None
+    with pytest.raises(IndexError, match="out of range for 2 envs"):
+        venv.get_attr("max_steps", indices=[5])
     venv.close()
+
+
+def test_adapter_env_method_calls_nothing_for_no_indices() -> None:
+    venv = HeartPoleSB3VecEnv(num_envs=2)
+    venv.reset()
+    venv.step(np.array([1, 1]))
+    assert venv.env_method("reset", indices=[]) == []
+    assert venv.vector_env.unwrapped.state[TIME_ELAPSED].tolist() == [1.0, 1.0]  # not reset: still mid-episode
+    assert len(venv.env_method("reset", seed=0, indices=[0, 1])) == 2
+
+
+@pytest.mark.parametrize("actions", [np.array([0.7, 1.2]), np.array([True, False])], ids=["float", "bool"])
+def test_adapter_passes_bad_actions_on_to_the_env_which_rejects_them(actions: np.ndarray) -> None:
+    venv = HeartPoleSB3VecEnv(num_envs=2)
+    venv.reset()
+    before = venv.vector_env.unwrapped.state
+    venv.step_async(actions)
+    with pytest.raises(ValueError, match="integer array"):
+        venv.step_wait()
+    np.testing.assert_array_equal(venv.vector_env.unwrapped.state, before)
 
 
 def test_vecmonitor_and_sb3_logger_read_the_episodes() -> None:

@@ -205,3 +205,44 @@ def test_steps_reuse_freed_memory_instead_of_page_faulting_it_back() -> None:
     faults = float(subprocess.run([sys.executable, "-c", FAULTS_PER_STEP, "with"], check=True,
                                   capture_output=True, text=True).stdout)
     assert faults < 20, f"{faults} page faults per step"
+
+
+def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> None:
+    env = make(4, max_steps=3, render_mode="rgb_array", heart_attack_proclivity=1.0)
+    always_sleep = np.full(4, 3, dtype=np.intp)  # the dtype the env works in: no conversion copies it
+    infos = []
+    for episode in range(2):
+        env.reset(seed=episode)
+        for _ in range(3):
+            infos.append(env.step(always_sleep)[4])
+    assert always_sleep.tolist() == [3, 3, 3, 3]
+    kept = [info["heart_attack"].copy() for info in infos]
+    env.reset(seed=5)
+    assert all((info["heart_attack"] == k).all() for info, k in zip(infos, kept))
+    env.step(always_sleep)
+    always_sleep[:] = 9  # the caller reuses its array; the env's frames must not read it
+    assert len(env.render()) == 4
+
+
+def test_same_step_autoreset_forgets_the_ended_episode_for_rendering(monkeypatch) -> None:
+    drawn = []
+    monkeypatch.setattr(heartpole.vector.rendering, "draw_frame", lambda state, **kw: drawn.append(kw))
+    env = heartpole.HeartPoleVectorEnv(1, max_steps=2, render_mode="rgb_array",
+                                       autoreset_mode=AutoresetMode.SAME_STEP, heart_attack_proclivity=1.0)
+    env.reset(seed=0)
+    env.step(np.array([2]))
+    env.render()
+    assert drawn[-1]["action"] == "drink_beer" and drawn[-1]["step"] == 1
+    *_, truncated, _ = env.step(np.array([2]))  # ends the episode; the env restarts within the step
+    assert truncated[0]
+    env.render()
+    assert drawn[-1] == {**drawn[-1], "action": None, "heart_attack": False, "heart_attacks": 0, "step": 0}
+
+
+def test_uniform_rows_from_a_32_bit_bit_generator_are_uniform() -> None:
+    # MT19937's raw draws carry 32 random bits: splitting them in two 32-bit halves would give zeros.
+    rows = uniform_rows(np.random.Generator(np.random.MT19937(0)), 4, 50_000)
+    for row in rows:
+        assert row.dtype == np.float32
+        assert abs(row.mean() - 0.5) < 5 * math.sqrt(1 / 12 / 50_000)  # 5 standard errors
+        assert (row == 0.0).mean() < 0.001

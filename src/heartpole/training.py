@@ -244,7 +244,7 @@ class HeartPoleSB3VecEnv(VecEnv):
 
     def step_async(self, actions: np.ndarray) -> None:
         """Remember the actions (one integer per env) for :meth:`step_wait`."""
-        self._actions = np.asarray(actions).reshape(self.num_envs).astype(np.int64)
+        self._actions = np.asarray(actions).reshape(self.num_envs)  # the vector env validates the values
 
     def step_wait(self) -> VecEnvStepReturn:
         """Step all envs: ``(observations, training rewards, dones, infos)``; see the class docstring."""
@@ -329,8 +329,11 @@ class HeartPoleSB3VecEnv(VecEnv):
         self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **kwargs: Any
     ) -> list[Any]:
         """Call the vector env's method once; its result is repeated once per index."""
+        chosen = self._indices(indices)
+        if not chosen:
+            return []
         result = getattr(self.vector_env.unwrapped, method_name)(*method_args, **kwargs)
-        return [result for _ in self._indices(indices)]
+        return [result for _ in chosen]
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         """Always ``False``: the native vector env wraps no single envs."""
@@ -344,9 +347,11 @@ class HeartPoleSB3VecEnv(VecEnv):
     def _indices(self, indices: VecEnvIndices) -> Sequence[int]:
         if indices is None:
             return range(self.num_envs)
-        if isinstance(indices, (int, np.integer)):
-            return [int(indices)]
-        return list(indices)
+        chosen = [int(indices)] if isinstance(indices, (int, np.integer)) else [int(i) for i in indices]
+        for i in chosen:
+            if not -self.num_envs <= i < self.num_envs:  # negative indices count from the end, as in a list
+                raise IndexError(f"env index {i} is out of range for {self.num_envs} envs")
+        return chosen
 
 
 def make_vec_env(

@@ -96,9 +96,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._state = self.dynamics.initial_state(wake)
         self._steps[:] = 0
         self._needs_reset[:] = False
-        self._last_actions[:] = -1
-        self._last_attacks[:] = False
-        self._heart_attacks[:] = 0
+        self._forget_last_steps(np.ones(self.num_envs, dtype=bool))
         return self._observations(), {}
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -120,8 +118,9 @@ class HeartPoleVectorEnv(VectorEnv):
             info = self._masked(info, ~restart)
         else:
             info = self._masked(info, None)
-        self._last_actions, self._last_attacks = action, attack
-        self._heart_attacks += attack
+        if self.render_mode is not None:  # copies: the caller owns `action`, and `attack` goes out in info
+            self._last_actions, self._last_attacks = action.copy(), attack.copy()
+            self._heart_attacks += attack
         obs = self._observations()
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
             if truncated.any():
@@ -165,6 +164,12 @@ class HeartPoleVectorEnv(VectorEnv):
         assert self._state is not None
         self._state[:, which] = self.dynamics.initial_state(wake_uniforms[which])
         self._steps[which] = 0
+        self._forget_last_steps(which)
+
+    def _forget_last_steps(self, which: np.ndarray) -> None:
+        """Rendering's memory of the envs in ``which`` (a mask): no last action, no heart attacks yet."""
+        self._last_actions[which] = -1
+        self._last_attacks[which] = False
         self._heart_attacks[which] = 0
 
     @staticmethod
@@ -214,6 +219,8 @@ def keep_step_memory(num_bytes: int) -> None:
 
 
 DRAW_BLOCK_VALUES = 16384  # uniforms per draw: 64 kB of float32, below glibc's mmap threshold
+# Bit generators whose random_raw() gives 64 random bits per value; any other takes Generator.random's path.
+RAW_64_BIT = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
 
 
 def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.ndarray]:
@@ -223,7 +230,8 @@ def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.
     the mantissa of a float in [1, 2), then 1 is subtracted (exact). This is about twice as fast as
     ``rng.random(dtype=np.float32)`` (24 bits), and the draws were the vector env's largest cost. Rows are
     drawn in blocks of at most 64 kB: blocks that small are recycled by the memory allocator instead of
-    being page-faulted in afresh on every step.
+    being page-faulted in afresh on every step. A bit generator not in :data:`RAW_64_BIT` (MT19937, or a
+    third party's) gives its rows through ``rng.random(dtype=np.float32)`` instead.
     """
     per_block = max(1, DRAW_BLOCK_VALUES // num_envs)
     drawn: list[np.ndarray] = []
@@ -234,6 +242,8 @@ def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.
 
 
 def _uniforms(rng: np.random.Generator, n: int) -> np.ndarray:
+    if type(rng.bit_generator) not in RAW_64_BIT:  # e.g. MT19937's raw draws have 32 random bits, not 64
+        return rng.random(n, dtype=np.float32)
     bits = rng.bit_generator.random_raw((n + 1) // 2).view(np.uint32)[:n]
     bits >>= 9
     bits |= 0x3F800000  # the exponent of 1.0
