@@ -197,7 +197,7 @@ class Dynamics:
         self, s: list[float], action: int, u: Sequence[float]
     ) -> tuple[float, float, float, bool, float]:
         """:meth:`transition` for one state: Python floats, branches instead of masks (the single env's path)."""
-        act = self._records[action]
+        act = self.record(action)
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
         for i, low, width, k in act.effects:  # facts 2 and 3
             s[i] += low + width * u[k]
@@ -229,7 +229,7 @@ class Dynamics:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`transition` for a batch: float32 rows updated in place, masks instead of branches."""
         s = list(state)  # the rows: every update below is an augmented assignment, in place
-        act = self._table.lookup(action)
+        act = self.record(action)
         old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
         for i, low, width, k in act.effects:  # facts 2 and 3
             width *= u[k]  # this step's own looked-up row
