@@ -74,14 +74,13 @@ def test_v0_trajectories_are_bit_for_bit_those_recorded() -> None:
     assert v0_vector_hash() == V0_VECTOR_SHA256
 
 
-def test_v0_keeps_its_spaces_draws_and_formula() -> None:
+def test_v0_keeps_its_spaces_actions_and_formula() -> None:
     dynamics = heartpole.Dynamics()
     assert [a.name for a in dynamics.actions] == ["do_nothing", "drink_coffee", "drink_beer", "sleep"]
-    # alertness (shared with waking up), hypertension, intoxication, the heart-attack coin
-    assert dynamics.num_uniforms == 4 and dynamics.wake_uniform == dynamics.uniform_column[0] == 0
-    assert dynamics.calming == () and dynamics.floored == ()
+    assert dynamics.tables.anxiety_relief == (0.0,) * 6  # no calm: productivity is the tutorial's
+    assert [len(part) for part in dynamics.layout] == [6, 1, 4 * (3 * 6 + 4)]
     assert heartpole.HeartPole().observation_space.shape == (6,)
-    assert productivity(2.7, 0.02) == productivity(2.7, 0.02, None)
+    assert productivity(2.7, 0.02) == productivity(2.7, 0.02, 0.0)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -138,21 +137,7 @@ def test_v1_reward_is_v0s_and_telescopes() -> None:
         total += reward
         attacks += info["heart_attack"]
     assert attacks > 0
-    assert total == pytest.approx(info["score"] - 100 * attacks, abs=1e-9)
-
-
-def test_v1_single_and_vector_paths_agree_given_the_same_draws() -> None:
-    """v1's new code paths (THC's anxiety relief, the hypertension floor, rests) are written once too."""
-    dynamics = heartpole.HeartPoleV1().dynamics
-    rng = np.random.default_rng(1)
-    single = dynamics.initial_state(0.4)
-    batch = dynamics.initial_state(np.array([0.4], dtype=np.float32))
-    for action in rng.integers(0, 8, 400).tolist():
-        uniforms = rng.random(dynamics.num_uniforms)
-        out_single = dynamics.transition(single, action, uniforms.tolist())
-        out_batch = dynamics.transition(batch, np.array([action]), uniforms[:, None].astype(np.float32))
-        np.testing.assert_allclose(batch[:, 0], single, rtol=2e-3, atol=2e-3)
-        assert out_batch[1][0] == pytest.approx(out_single[1], rel=2e-3, abs=2e-3)  # productivity
+    assert total == pytest.approx(info["score"] - 100 * attacks, abs=1e-4)  # float32 rounding
 
 
 def test_v1_manual_states_each_new_actions_amounts_fact_and_source() -> None:
@@ -272,8 +257,8 @@ def test_thc_fades_with_its_own_half_life_and_moves_the_onset_of_anxiety() -> No
     for _ in range(6):
         env.step(0)
         levels.append(env.state["thc"])
-    np.testing.assert_allclose(np.array(levels[1:]) / np.array(levels[:-1]), 0.7, rtol=1e-12)
-    assert levels[-1] / levels[0] == pytest.approx(0.7**6)  # 12% left after three hours
+    np.testing.assert_allclose(np.array(levels[1:]) / np.array(levels[:-1]), 0.7, rtol=1e-6)  # float32
+    assert levels[-1] / levels[0] == pytest.approx(0.7**6, rel=1e-5)  # 12% left after three hours
     # at alertness 3.5 anxiety takes sigmoid(0.5) = 62% of the work; one unit of THC brings that to 38%
     assert productivity(3.5, 0.0, 1.0) / productivity(3.5, 0.0) == pytest.approx(math.exp(0.5), rel=1e-12)
     relieved = 3.5 * (1 - heartpole.crippling_anxiety(2.5)) * heartpole.ballmer(0.0)

@@ -6,10 +6,6 @@ That its dynamics equal the single env's in distribution is tested in test_faith
 from __future__ import annotations
 
 import copy
-import math
-import platform
-import subprocess
-import sys
 
 import gymnasium as gym
 import numpy as np
@@ -17,7 +13,6 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole
-from heartpole.vector import uniform_rows
 
 
 def make(num_envs: int = 4, **kwargs) -> heartpole.HeartPoleVectorEnv:
@@ -116,58 +111,6 @@ def test_step_before_reset_and_bad_construction() -> None:
         heartpole.HeartPoleVectorEnv(2, max_steps=0)
 
 
-def test_vector_env_follows_one_env_of_the_single_dynamics_exactly_given_the_same_draws() -> None:
-    """One source of truth: feeding the single-state and the batch paths the same uniforms gives the
-    same states (up to float32 rounding)."""
-    dynamics = heartpole.Dynamics()
-    rng = np.random.default_rng(0)
-    single = dynamics.initial_state(0.25)
-    batch = dynamics.initial_state(np.array([0.25], dtype=np.float32))
-    for action in rng.integers(0, 4, 300).tolist():
-        uniforms = rng.random(dynamics.num_uniforms)
-        dynamics.transition(single, action, uniforms.tolist())
-        dynamics.transition(batch, np.array([action]), uniforms[:, None].astype(np.float32))
-        np.testing.assert_allclose(batch[:, 0], single, rtol=2e-3, atol=2e-3)
-
-
-def test_a_batch_of_many_envs_follows_the_single_path_env_by_env() -> None:
-    """The batch path looks each env's action up in a table (a matrix product); with every action in one
-    batch, each env must still follow the single path given its own draws."""
-    dynamics = heartpole.Dynamics()
-    rng = np.random.default_rng(1)
-    n = 64
-    wake = rng.random(n).astype(np.float32)
-    batch = dynamics.initial_state(wake)
-    singles = [dynamics.initial_state(float(w)) for w in wake]
-    for _ in range(200):
-        actions = rng.integers(0, 4, n)
-        uniforms = rng.random((dynamics.num_uniforms, n)).astype(np.float32)
-        reward, *_ = dynamics.transition(batch, actions, uniforms)
-        for i, single in enumerate(singles):
-            single_reward, *_ = dynamics.transition(single, int(actions[i]), uniforms[:, i].astype(float).tolist())
-            assert reward[i] == pytest.approx(single_reward, abs=2e-3)
-    np.testing.assert_allclose(batch, np.array(singles).T, rtol=2e-3, atol=2e-3)
-
-
-def test_uniform_rows_are_uniform_independent_and_reproducible() -> None:
-    """2 x 200,000 draws: the mean within 4.5 standard errors of 1/2, the Kolmogorov-Smirnov distance to
-    U(0, 1) below its 1e-4 critical value, the rows uncorrelated (|r| < 4.5 / sqrt(n)), all values on
-    the 23-bit grid in [0, 1), and the same seed giving the same draws."""
-    n = 200_000
-    rows = uniform_rows(np.random.default_rng(3), 2, n)
-    again = uniform_rows(np.random.default_rng(3), 2, n)
-    for row, same in zip(rows, again):
-        assert row.dtype == np.float32 and row.shape == (n,)
-        np.testing.assert_array_equal(row, same)
-        assert 0.0 <= row.min() and row.max() < 1.0
-        assert np.all(row * 2**23 == np.floor(row * 2**23))
-        assert abs(row.mean() - 0.5) < 4.5 * math.sqrt(1 / 12 / n)
-        ordered = np.sort(row.astype(np.float64))
-        ks = max(np.max(np.arange(1, n + 1) / n - ordered), np.max(ordered - np.arange(n) / n))
-        assert ks < 2.23 / math.sqrt(n)
-    assert abs(np.corrcoef(rows[0], rows[1])[0, 1]) < 4.5 / math.sqrt(n)
-
-
 def test_observations_are_copies_in_cartpoles_column_major_layout() -> None:
     env = make(5)
     obs, _ = env.reset(seed=0)
@@ -178,33 +121,6 @@ def test_observations_are_copies_in_cartpoles_column_major_layout() -> None:
         obs[:] = 99.0  # the caller owns its observations
         assert not np.any(env.state == 99.0)
         obs = env.step(np.array([0, 1, 2, 3, 1]))[0]
-
-
-FAULTS_PER_STEP = """
-import resource, sys
-import numpy as np
-import heartpole.vector
-if sys.argv[1] == "without":
-    heartpole.vector.keep_step_memory = lambda num_bytes: None
-env = heartpole.vector.HeartPoleVectorEnv(16384)
-env.reset(seed=0)
-actions = np.random.default_rng(0).integers(0, 4, size=16384)
-for _ in range(5):
-    env.step(actions)
-before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-for _ in range(40):
-    env.step(actions)
-print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / 40)
-"""
-
-
-@pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="about glibc's malloc thresholds")
-def test_steps_reuse_freed_memory_instead_of_page_faulting_it_back() -> None:
-    # A fresh process: pytest's own process has long raised glibc's thresholds by freeing large arrays.
-    # Without keep_step_memory a step at 16,384 envs page-faults about 140 times.
-    faults = float(subprocess.run([sys.executable, "-c", FAULTS_PER_STEP, "with"], check=True,
-                                  capture_output=True, text=True).stdout)
-    assert faults < 20, f"{faults} page faults per step"
 
 
 def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> None:
@@ -237,12 +153,3 @@ def test_same_step_autoreset_forgets_the_ended_episode_for_rendering(monkeypatch
     assert truncated[0]
     env.render()
     assert drawn[-1] == {**drawn[-1], "action": None, "heart_attack": False, "heart_attacks": 0, "step": 0}
-
-
-def test_uniform_rows_from_a_32_bit_bit_generator_are_uniform() -> None:
-    # MT19937's raw draws carry 32 random bits: splitting them in two 32-bit halves would give zeros.
-    rows = uniform_rows(np.random.Generator(np.random.MT19937(0)), 4, 50_000)
-    for row in rows:
-        assert row.dtype == np.float32
-        assert abs(row.mean() - 0.5) < 5 * math.sqrt(1 / 12 / 50_000)  # 5 standard errors
-        assert (row == 0.0).mean() < 0.001

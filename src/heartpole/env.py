@@ -11,17 +11,14 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
+from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
 from heartpole.model import Params, Variable
 
-# Uniform draws are taken from the generator in blocks of this many steps: one generator call per block
-# keeps the step lean, and the block is part of the env's state, so copies and pickles continue exactly.
-DRAW_BLOCK_STEPS = 256
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
-_FLOAT32 = np.dtype(np.float32)  # passed positionally: np.array(state, _FLOAT32) is the step's largest cost
 
 
 def observation_space(dynamics: Dynamics) -> spaces.Box:
@@ -170,12 +167,11 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self.max_steps = int(max_steps)
         self.action_space = spaces.Discrete(len(self.dynamics.actions))
         self.observation_space = observation_space(self.dynamics)
-        self._state: list[float] | None = None
+        self._state: np.ndarray | None = None
+        self._rng = np.zeros(3, dtype=np.uint32)  # the key's two halves and the draw counter
         self._action_names = tuple(a.name for a in self.dynamics.actions)
         self._num_actions = len(self._action_names)
-        self._transition = self.dynamics.transition_one
-        self._draws: list[list[float]] = []
-        self._next_draw = 0
+        self._packed, self._layout = self.dynamics.packed, self.dynamics.layout[:2]
         self._steps = 0
         self._last_action: str | None = None
         self._last_attack = False
@@ -193,20 +189,25 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         """The current state as ``{variable: value}`` (a copy)."""
         if self._state is None:
             raise ResetNeeded("call reset() before reading the state of HeartPole")
-        return dict(zip(self.dynamics.names, self._state))
+        return dict(zip(self.dynamics.names, self._state.tolist()))
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
-        """Start a new episode: everything at 0, then wake up (fact 1). ``options`` is accepted and unused."""
+        """Start a new episode: everything at 0, then wake up (fact 1). ``options`` is accepted and unused.
+
+        The episode's random numbers are keyed by one 64-bit draw from ``self.np_random``, as env 0 of a
+        :class:`heartpole.HeartPoleVectorEnv` reset with the same seed: the two then agree bit for bit.
+        """
         super().reset(seed=seed)
-        self._draw_block()
-        self._next_draw = 1
-        self._state = self.dynamics.initial_state(self._draws[0][self.dynamics.wake_uniform])
+        envs = np.zeros((len(self.dynamics.variables), 1), dtype=np.float32)
+        rng = kernel.generator_states(self.np_random, 1)
+        kernel.reset_envs(envs, rng, np.ones(1, dtype=bool), self._packed, self.dynamics.layout)
+        self._state, self._rng = envs[:, 0].copy(), rng[:, 0].copy()
         self._steps = 0
         self._last_action, self._last_attack, self._heart_attacks = None, False, 0
         self._log.clear()
         if self.render_mode == "human":
             self.render()
-        return np.array(self._state, _FLOAT32), {}
+        return self._state.copy(), {}
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
@@ -214,18 +215,14 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         state = self._state
         if state is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
-        if self._next_draw == len(self._draws):
-            self._draw_block()
-        uniforms = self._draws[self._next_draw]
-        self._next_draw += 1
-        reward, worked, risk, attack, new_score = self._transition(state, index, uniforms)
+        reward, worked, risk, attack, new_score = kernel.step_one(state, index, self._rng, self._packed, self._layout)
         self._steps += 1
         name = self._action_names[index]
         if self.render_mode is not None:
             self._remember(name, attack)
         info = {"action": name, "heart_attack": attack, "heart_attack_risk": risk, "productivity": worked,
                 "score": new_score}
-        return np.array(state, _FLOAT32), reward, False, self._steps >= self.max_steps, info
+        return state.copy(), reward, False, self._steps >= self.max_steps, info
 
     def render(self) -> str | np.ndarray | None:
         """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""
@@ -257,14 +254,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._last_action, self._last_attack = name, attack
         self._heart_attacks += attack
         if self.render_mode in ("ansi", "human"):
-            self._log.append((name, tuple(self._state or ()), attack))  # formatted only when rendered
+            self._log.append((name, tuple(self._state.tolist()), attack))  # formatted only when rendered
             if self.render_mode == "human":
                 self.render()
-
-    def _draw_block(self) -> None:
-        """Draw the uniforms of the next ``DRAW_BLOCK_STEPS`` steps with one call to ``self.np_random``."""
-        block = self.np_random.random((DRAW_BLOCK_STEPS, self.dynamics.num_uniforms))
-        self._draws, self._next_draw = block.tolist(), 0
 
     def _index(self, action: Any) -> int:
         """Validate an action that is not a plain in-range int; raise a ``ValueError`` naming valid ones."""

@@ -1,8 +1,14 @@
-"""The HeartPole physiology: parameters, state variables and the formulas of the tutorial's facts 0-8.
+"""The HeartPole physiology as the tutorial writes it: facts 0-8 and one step of a working day.
 
-Every formula here is written once and works on Python floats (fast, exact ``math`` calls, used by the
-single env) and on NumPy arrays (used by the vector env and by plots) alike. Time is counted in
-half-hours.
+Everything here is plain arithmetic on one person's state, in the tutorial's order and with its signs
+and constants. The functions take Python or NumPy numbers (a NumPy array gives the curve over many
+values, as in the tutorial's plots). Three things are *bound by the backend* that runs them:
+``exp``, ``where`` (a branch-free ``a if condition else b``) and ``replace`` (a tuple with one item
+changed). :mod:`heartpole.kernel` compiles this very code with numba, in float32, with its own
+``exp``; the JAX env traces it with ``jax.numpy``'s. No formula is written anywhere else.
+
+Time is counted in half-hours. A state is a tuple of floats in observation order (``ALERTNESS`` ...
+``WORK_DONE``, then any variant's extra variables).
 """
 
 from __future__ import annotations
@@ -10,98 +16,182 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
+from numpy import where
 
-ArrayOrFloat = Any  # a Python float or a NumPy array; the formulas accept either
+Number = Any
+"""A Python float, a NumPy scalar or array, or a backend's number (numba float32, JAX tracer)."""
+State = tuple[Number, ...]
+"""One person's state: one number per state variable, in observation order."""
+
+# Fact 0: what your productivity and health depend on, in the tutorial's (and the observation's) order.
+ALERTNESS, HYPERTENSION, INTOXICATION, TIME_SINCE_SLEPT, TIME_ELAPSED, WORK_DONE = range(6)
 
 
-def _exp_(x: ArrayOrFloat) -> ArrayOrFloat:
-    """``exp(x)``; a float array is overwritten with the result, so pass only a temporary you own.
-
-    Floats go through ``math`` (fast, exact, clamped so it never overflows); arrays are computed in place,
-    which halves the memory traffic of a batch step.
-    """
-    if type(x) is float:
-        return math.exp(x if x < 700.0 else 700.0)
-    with np.errstate(over="ignore"):  # exp() may overflow to inf on purpose: 1 / (1 + inf) is 0
-        if type(x) is np.ndarray and x.dtype.kind == "f":
-            return np.exp(x, out=x)
+def exp(x: Number) -> Number:
+    """``e ** x`` with NumPy. Overflow to infinity is expected here (a sigmoid of it is then 0), not warned."""
+    with np.errstate(over="ignore"):
         return np.exp(x)
 
 
-def _logistic_(x: ArrayOrFloat) -> ArrayOrFloat:
-    """``1 / (1 + exp(x))``, overwriting a float array ``x`` (a temporary) with the result."""
-    if type(x) is float:  # the single env's path, kept short: it runs five times a step
-        return 1.0 / (1.0 + math.exp(x if x < 700.0 else 700.0))
-    x = _exp_(x)
-    x += 1.0
-    if type(x) is np.ndarray:
-        return np.reciprocal(x, out=x)
-    return 1.0 / x
+def replace(state: State, index: int, value: Number) -> State:
+    """``state`` with item ``index`` set to ``value`` (states are tuples: every backend can trace them)."""
+    return state[:index] + (value,) + state[index + 1 :]
 
 
-def sigmoid(x: ArrayOrFloat) -> ArrayOrFloat:
+def sigmoid(x: Number) -> Number:
     """The logistic function ``1 / (1 + exp(-x))``."""
-    return _logistic_(-x)
+    return 1.0 / (1.0 + exp(-x))
 
 
-def gaussian(x: ArrayOrFloat, mu: float, sigma: float) -> ArrayOrFloat:
+def gaussian(x: Number, mu: Number, sigma: Number) -> Number:
     """An unnormalised bell curve ``exp(-(x - mu)**2 / (2 sigma**2))``: 1 at ``x == mu``, width ``sigma``."""
-    exponent = x - mu
-    exponent *= exponent
-    exponent *= -0.5 / sigma**2
-    # Far from mu, exp() would give subnormal float32 numbers, which CPUs compute about ten times slower;
-    # flooring the exponent at -87 keeps them normal and changes the bell by less than 1.7e-38.
-    if type(exponent) is float:
-        return math.exp(exponent if exponent > -87.0 else -87.0)
-    return _exp_(np.maximum(exponent, -87.0, out=exponent if type(exponent) is np.ndarray else None))
+    return exp(-((x - mu) ** 2.0) / (2.0 * sigma**2.0))
 
 
-def heart_attack_risk(hypertension: ArrayOrFloat, proclivity: float = 0.5) -> ArrayOrFloat:
+def heart_attack_risk(hypertension: Number, proclivity: Number = 0.5) -> Number:
     """Fact 4: the probability of a heart attack in one step, ``proclivity * sigmoid(hypertension - 6)``."""
-    risk = _logistic_(6.0 - hypertension)
-    risk *= proclivity
-    return risk
+    return proclivity * sigmoid(hypertension - 6.0)
 
 
-def alertness_decay(time_since_slept: ArrayOrFloat) -> ArrayOrFloat:
+def alertness_decay(time_since_slept: Number) -> Number:
     """Fact 6: alertness lost in one half-hour awake, ``sigmoid((time_since_slept - 40) / 10)``."""
-    exponent = 40.0 - time_since_slept
-    exponent /= 10.0
-    return _logistic_(exponent)
+    return sigmoid((time_since_slept - 40.0) / 10.0)
 
 
-def crippling_anxiety(alertness: ArrayOrFloat) -> ArrayOrFloat:
+def crippling_anxiety(alertness: Number) -> Number:
     """Fact 7: the share of work lost to anxiety when too alert, ``sigmoid(alertness - 3)``."""
-    return _logistic_(3.0 - alertness)
+    return sigmoid(alertness - 3.0)
 
 
-def ballmer(intoxication: ArrayOrFloat) -> ArrayOrFloat:
+def ballmer(intoxication: Number) -> Number:
     """Fiction 8: programming skill against blood alcohol, with the Ballmer peak at 0.135:
     ``sigmoid((0.05 - intoxication) * 50) + 2 * gaussian(intoxication, 0.135, 0.005)``."""
-    exponent = intoxication - 0.05
-    exponent *= 50.0
-    skill = _logistic_(exponent)
-    peak = gaussian(intoxication, 0.135, 0.005)
-    peak *= 2.0
-    skill += peak
-    return skill
+    return sigmoid((0.05 - intoxication) * 50.0) + 2.0 * gaussian(intoxication, 0.135, 0.005)
 
 
-def productivity(
-    alertness: ArrayOrFloat, intoxication: ArrayOrFloat, calm: ArrayOrFloat | None = None
-) -> ArrayOrFloat:
-    """Fact 7 and fiction 8: work done in one half-hour, ``alertness * (1 - anxiety) * ballmer``.
+def productivity(alertness: Number, intoxication: Number, calm: Number = 0.0) -> Number:
+    """Facts 7 and 8: work done in one half-hour, ``alertness * (1 - crippling_anxiety) * ballmer``.
 
     ``calm`` is anxiety relief (HeartPole-v1's THC; see :attr:`Variable.anxiety_relief`): anxiety sets in
-    ``calm`` units of alertness later, ``crippling_anxiety(alertness - calm)``. ``None``, v0's case, is none.
+    ``calm`` units of alertness later, ``crippling_anxiety(alertness - calm)``. v0 has none.
     """
-    anxious = alertness if calm is None else alertness - calm
-    work = 1.0 - crippling_anxiety(anxious)
-    work *= alertness
-    return work * ballmer(intoxication)  # not in place: the two may broadcast to a larger shape
+    return alertness * (1.0 - crippling_anxiety(alertness - calm)) * ballmer(intoxication)
+
+
+def score(work_done: Number, time_elapsed: Number) -> Number:
+    """The running productivity score ``work_done / time_elapsed``, 0 before any time has passed."""
+    return work_done / where(time_elapsed > 1.0, time_elapsed, 1.0)
+
+
+def wake_alertness(uniform: Number, t: StepTables) -> Number:
+    """Fact 1: after a good night's sleep you wake up quite alert, uniformly in ``Params.wake_alertness``."""
+    return t.wake_low + t.wake_width * uniform
+
+
+def initial_state(zeros: State, uniform: Number, t: StepTables) -> State:
+    """Facts 0 and 1: every variable at 0, then waking up (``uniform`` is a draw in [0, 1))."""
+    return replace(zeros, ALERTNESS, wake_alertness(uniform, t))
+
+
+class ActionEffects(NamedTuple):
+    """What one action does, as numbers (one per state variable where a tuple).
+
+    The action adds ``effect_low[v] + effect_width[v] * u`` to variable ``v``; then ``rest`` half-hours
+    pass without work, the first ``drowsy`` of them awake, after which ``rest_fade[v]`` of ``v`` is left;
+    ``sleeps`` (1 or 0) ends the rest by waking up. Built by :class:`heartpole.dynamics.Dynamics`.
+    """
+
+    effect_low: tuple[Number, ...]
+    effect_width: tuple[Number, ...]
+    rest_fade: tuple[Number, ...]
+    rest: Number
+    drowsy: Number
+    sleeps: Number
+
+
+class StepTables(NamedTuple):
+    """What a variant's variables and parameters mean to :func:`step`, as numbers.
+
+    Per variable ``v``: its lower bound ``floor[v]``, its share left after a half-hour ``fade[v]`` and
+    its ``anxiety_relief[v]``. ``rest_offsets`` are 0, 1, ... up to the longest drowsy rest of the
+    variant's actions, at least one. Built by :class:`heartpole.dynamics.Dynamics`.
+    """
+
+    floor: tuple[Number, ...]
+    fade: tuple[Number, ...]
+    anxiety_relief: tuple[Number, ...]
+    rest_offsets: tuple[Number, ...]
+    heart_attack_proclivity: Number
+    heart_attack_penalty: Number
+    wake_low: Number
+    wake_width: Number
+
+
+def step(
+    s: State, a: ActionEffects, u: Sequence[Number], t: StepTables
+) -> tuple[State, Number, Number, Number, Any, Number]:
+    """One decision and the half-hour of work after it: the tutorial's ``HeartPole.step`` for one person.
+
+    Args:
+        s: the state before the step.
+        a: what the chosen action does (:class:`ActionEffects`).
+        u: ``len(s) + 2`` uniform draws in [0, 1): one per variable for the action's effect on it, one for
+            waking up, one for the heart-attack coin.
+        t: the variant's variables and parameters (:class:`StepTables`).
+
+    Returns:
+        ``(state, reward, productivity, heart_attack_risk, heart_attack, score)`` after the step.
+    """
+    old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
+    n = len(s)
+
+    # Facts 2 and 3 (and any variant's actions): each effect adds a uniform amount in [low, high].
+    # No variable goes below its lower bound (exercise cannot push blood pressure under 0).
+    for v in range(n):
+        changed = s[v] + a.effect_low[v] + a.effect_width[v] * u[v]
+        s = replace(s, v, where(changed < t.floor[v], t.floor[v], changed))
+
+    # Rest and sleep: half-hours without work. Alertness drains in those spent awake (fact 6);
+    # blood pressure and alcohol fade through all of them (fact 5).
+    drain = 0.0
+    for offset in t.rest_offsets:
+        drain += where(offset < a.drowsy, alertness_decay(s[TIME_SINCE_SLEPT] + offset), 0.0)
+    s = replace(s, ALERTNESS, s[ALERTNESS] - drain)
+    for v in range(n):
+        s = replace(s, v, s[v] * a.rest_fade[v])
+    s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + a.rest)
+    s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + a.rest)
+
+    # Fact 1: after sleep you wake up quite alert, and the day starts afresh.
+    sleeps = a.sleeps > 0.5
+    s = replace(s, ALERTNESS, where(sleeps, wake_alertness(u[n], t), s[ALERTNESS]))
+    s = replace(s, TIME_SINCE_SLEPT, where(sleeps, 0.0, s[TIME_SINCE_SLEPT]))
+
+    # Facts 7 and 8: a half-hour of work.
+    calm = 0.0
+    for v in range(n):
+        calm += t.anxiety_relief[v] * s[v]
+    worked = productivity(s[ALERTNESS], s[INTOXICATION], calm)
+    s = replace(s, WORK_DONE, s[WORK_DONE] + worked)
+
+    # Facts 5 and 6: the half-hour passes.
+    s = replace(s, ALERTNESS, s[ALERTNESS] - alertness_decay(s[TIME_SINCE_SLEPT]))
+    for v in range(n):
+        s = replace(s, v, s[v] * t.fade[v])
+    s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + 1.0)
+    s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + 1.0)
+
+    # The reward: the change of the score, and -100 for a heart attack (fact 4), which, like purgatory,
+    # is painful but cleansing: blood pressure back to 0.
+    new_score = score(s[WORK_DONE], s[TIME_ELAPSED])
+    risk = heart_attack_risk(s[HYPERTENSION], t.heart_attack_proclivity)
+    attack = u[n + 1] < risk
+    s = replace(s, HYPERTENSION, where(attack, 0.0, s[HYPERTENSION]))
+    reward = new_score - old_score - where(attack, t.heart_attack_penalty, 0.0)
+    return s, reward, worked, risk, attack, new_score
 
 
 @dataclass(frozen=True)
@@ -189,7 +279,6 @@ class Variable:
         return params.decay_rate if self.decay == "params" else self.decay
 
 
-ALERTNESS, HYPERTENSION, INTOXICATION, TIME_SINCE_SLEPT, TIME_ELAPSED, WORK_DONE = range(6)
 
 V0_VARIABLES: tuple[Variable, ...] = (
     Variable("alertness", description="sleepy (low) vs alert (high); wakes up near 1"),
@@ -199,16 +288,6 @@ V0_VARIABLES: tuple[Variable, ...] = (
     Variable("time_elapsed", 0.0, description="half-hours since the episode began, sleep included"),
     Variable("work_done", description="total productivity so far"),
 )
-
-
-def score(work_done: ArrayOrFloat, time_elapsed: ArrayOrFloat) -> ArrayOrFloat:
-    """The running productivity score ``work_done / time_elapsed`` (0 before any time has passed).
-
-    ``time_elapsed`` counts whole half-hours, so dividing by at least 1 only changes the start, where both are 0.
-    """
-    if type(time_elapsed) is float:
-        return work_done / (time_elapsed if time_elapsed > 1.0 else 1.0)
-    return work_done / np.maximum(time_elapsed, 1.0)
 
 
 def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:

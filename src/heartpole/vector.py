@@ -11,6 +11,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.env import build_dynamics, check_render_mode, observation_space
@@ -20,16 +21,18 @@ from heartpole.model import Variable
 class HeartPoleVectorEnv(VectorEnv):
     """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
 
-    The same :class:`heartpole.dynamics.Dynamics` as :class:`heartpole.HeartPole` runs on a
-    ``(num_variables, num_envs)`` float32 state, updated in place, with one row of float32 uniforms per
-    random column drawn from ``self.np_random`` (23 random bits each; see :func:`uniform_rows`). Keyword
-    arguments are the single env's.
+    The same compiled step as :class:`heartpole.HeartPole` (:func:`heartpole.kernel.step_envs`) runs
+    over a ``(num_variables, num_envs)`` float32 state, in place. Each env's random numbers are keyed by
+    one 64-bit draw from ``self.np_random`` at ``reset``, in env order, and counted from there on (through
+    autoresets too): env 0 after ``reset(seed=s)`` follows ``HeartPole().reset(seed=s)`` bit for bit.
+    Keyword arguments are the single env's.
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
     Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
     variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows. ``info`` holds arrays of
-    ``num_envs`` values (``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with
-    Gymnasium's ``_key`` masks (one shared mask array: every key is present for the same envs).
+    ``num_envs`` values (``action``, the index of the action taken or -1 where an env was restarted;
+    ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with Gymnasium's ``_key``
+    masks (one shared mask array: every key is present for the same envs).
 
     Autoreset: by default Gymnasium's ``NEXT_STEP`` mode. An env whose episode was truncated is reset by
     the *next* call to ``step``, which ignores its action and returns its first observation with reward 0
@@ -38,9 +41,6 @@ class HeartPoleVectorEnv(VectorEnv):
     ``info["final_info"]`` (the mode Stable-Baselines3's VecEnv expects).
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
-
-    Memory: creating the env lets glibc's malloc keep up to 512 bytes per env of freed memory for reuse
-    (see :func:`keep_step_memory`); without it every step page-faulted its fresh arrays back in.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 8, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -72,28 +72,31 @@ class HeartPoleVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = observation_space(self.dynamics)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._state: np.ndarray | None = None
+        n = len(self.dynamics.variables)
+        self._envs = np.zeros((n + len(kernel.OUTPUTS), self.num_envs), dtype=np.float32)  # states, then results
+        self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
+        self._started = False
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
         self._needs_reset = np.zeros(self.num_envs, dtype=bool)
         self._last_actions = np.full(self.num_envs, -1)
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
-        keep_step_memory(STEP_MEMORY_ROWS * 4 * self.num_envs)
 
     @property
     def state(self) -> np.ndarray:
         """The current states, ``(num_variables, num_envs)`` float32 (a copy)."""
-        if self._state is None:
+        if not self._started:
             raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
-        return self._state.copy()
+        return self._states().copy()
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start every env afresh (fact 0, then waking up). ``options`` is accepted and unused."""
         super().reset(seed=seed)
-        wake = self.np_random.random(self.num_envs, dtype=np.float32)
-        self._state = self.dynamics.initial_state(wake)
+        self._rng[:] = kernel.generator_states(self.np_random, self.num_envs)
+        self._started = True
+        self._restart(np.ones(self.num_envs, dtype=bool))
         self._steps[:] = 0
         self._needs_reset[:] = False
         self._forget_last_steps(np.ones(self.num_envs, dtype=bool))
@@ -102,24 +105,26 @@ class HeartPoleVectorEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its action; see the class docstring for autoreset and ``info``."""
         action = self._validate(actions)
-        if self._state is None:
+        if not self._started:
             raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
-        uniforms = uniform_rows(self.np_random, self.dynamics.num_uniforms, self.num_envs)
-        reward, worked, risk, attack, new_score = self.dynamics.transition(self._state, action, uniforms)
+        kernel.step_envs(self._envs, action, self._rng, self.dynamics.packed, self.dynamics.layout)
+        reward, worked, risk, attack, new_score = self._envs[len(self.dynamics.variables) :].copy()
+        attack = attack > 0.5
         self._steps += 1
         truncated = self._steps >= self.max_steps
         terminated = np.zeros(self.num_envs, dtype=bool)
-        info = {"heart_attack": attack, "heart_attack_risk": risk, "productivity": worked, "score": new_score}
+        info = {"action": action.copy(), "heart_attack": attack, "heart_attack_risk": risk, "productivity": worked,
+                "score": new_score}
         if self._needs_reset.any():  # NEXT_STEP autoreset: these envs start afresh and ignore their action
             restart = self._needs_reset
-            self._restart(restart, uniforms[self.dynamics.wake_uniform])
+            self._restart(restart)
             reward[restart], truncated[restart], attack[restart] = 0.0, False, False
-            action = np.where(restart, -1, action)
+            info["action"][restart] = -1
             info = self._masked(info, ~restart)
         else:
             info = self._masked(info, None)
         if self.render_mode is not None:  # copies: the caller owns `action`, and `attack` goes out in info
-            self._last_actions, self._last_attacks = action.copy(), attack.copy()
+            self._last_actions, self._last_attacks = info["action"].copy(), attack.copy()
             self._heart_attacks += attack
         obs = self._observations()
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
@@ -128,7 +133,7 @@ class HeartPoleVectorEnv(VectorEnv):
                 info["_final_obs"] = truncated.copy()
                 info["final_info"] = {k: v for k, v in info.items() if not k.startswith(("final", "_final"))}
                 info["_final_info"] = truncated.copy()
-                self._restart(truncated, self.np_random.random(self.num_envs, dtype=np.float32))
+                self._restart(truncated)
                 obs = self._observations()
         else:
             self._needs_reset = truncated.copy()
@@ -136,7 +141,7 @@ class HeartPoleVectorEnv(VectorEnv):
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """With ``render_mode="rgb_array"``: one RGB frame per env, drawing its current state."""
-        if self.render_mode is None or self._state is None:
+        if self.render_mode is None or not self._started:
             return None
         names = self.dynamics.names
         frames = []
@@ -144,7 +149,7 @@ class HeartPoleVectorEnv(VectorEnv):
             last = int(self._last_actions[i])
             frames.append(
                 rendering.draw_frame(
-                    dict(zip(names, self._state[:, i].tolist())),
+                    dict(zip(names, self._states()[:, i].tolist())),
                     action=self.dynamics.actions[last].name if last >= 0 else None,
                     heart_attack=bool(self._last_attacks[i]),
                     heart_attacks=int(self._heart_attacks[i]),
@@ -157,12 +162,15 @@ class HeartPoleVectorEnv(VectorEnv):
     # ----------------------------------------------------------------------------------------------------
     def _observations(self) -> np.ndarray:
         """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s."""
-        assert self._state is not None
-        return self._state.copy().T
+        return self._states().copy().T
 
-    def _restart(self, which: np.ndarray, wake_uniforms: np.ndarray) -> None:
-        assert self._state is not None
-        self._state[:, which] = self.dynamics.initial_state(wake_uniforms[which])
+    def _states(self) -> np.ndarray:
+        """The states, ``(num_variables, num_envs)``: a view of the rows of ``_envs`` that hold them."""
+        return self._envs[: len(self.dynamics.variables)]
+
+    def _restart(self, which: np.ndarray) -> None:
+        """Start the envs in ``which`` (a mask) afresh; their random numbers go on from their counters."""
+        kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
         self._steps[which] = 0
         self._forget_last_steps(which)
 
@@ -196,57 +204,3 @@ class HeartPoleVectorEnv(VectorEnv):
                 f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
             )
         return index
-
-
-# A step's arrays (state, draws, action table, temporaries, results) add up to about this many rows of
-# num_envs float32 values.
-STEP_MEMORY_ROWS = 64
-# glibc raises its thresholds only for a freed block of at most 32 MiB, its header and page rounding included.
-LARGEST_THRESHOLD = 2**25 - 2**12
-
-
-def keep_step_memory(num_bytes: int) -> None:
-    """Let glibc's malloc keep up to ``2 * num_bytes`` of freed memory instead of returning it to the OS.
-
-    At start, glibc gives freed heap memory back to the OS as soon as more than 128 kB of it is free, so
-    the fresh arrays of every step were page-faulted in again: about 140 page faults a step at 16,384 envs,
-    a third of the step's time. Freeing one block that was allocated with ``mmap`` (here, an untouched
-    ``np.empty`` of ``num_bytes``) raises glibc's mmap and trim thresholds to its size and twice that
-    (mallopt(3), "dynamic mmap threshold"), as freeing any large array does in a program. glibc ignores
-    blocks over 32 MiB, so the block is capped just below. Other allocators are not affected.
-    """
-    np.empty(min(num_bytes, LARGEST_THRESHOLD), dtype=np.uint8)  # allocated, freed, its pages never touched
-
-
-DRAW_BLOCK_VALUES = 16384  # uniforms per draw: 64 kB of float32, below glibc's mmap threshold
-# Bit generators whose random_raw() gives 64 random bits per value; any other takes Generator.random's path.
-RAW_64_BIT = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
-
-
-def uniform_rows(rng: np.random.Generator, rows: int, num_envs: int) -> list[np.ndarray]:
-    """``rows`` float32 arrays of ``num_envs`` uniforms in [0, 1), 23 random bits each, drawn from ``rng``.
-
-    Each 64-bit draw of ``rng``'s bit generator gives two uniforms: the top 23 bits of a 32-bit half become
-    the mantissa of a float in [1, 2), then 1 is subtracted (exact). This is about twice as fast as
-    ``rng.random(dtype=np.float32)`` (24 bits), and the draws were the vector env's largest cost. Rows are
-    drawn in blocks of at most 64 kB: blocks that small are recycled by the memory allocator instead of
-    being page-faulted in afresh on every step. A bit generator not in :data:`RAW_64_BIT` (MT19937, or a
-    third party's) gives its rows through ``rng.random(dtype=np.float32)`` instead.
-    """
-    per_block = max(1, DRAW_BLOCK_VALUES // num_envs)
-    drawn: list[np.ndarray] = []
-    for start in range(0, rows, per_block):
-        count = min(per_block, rows - start)
-        drawn.extend(_uniforms(rng, count * num_envs).reshape(count, num_envs))
-    return drawn
-
-
-def _uniforms(rng: np.random.Generator, n: int) -> np.ndarray:
-    if type(rng.bit_generator) not in RAW_64_BIT:  # e.g. MT19937's raw draws have 32 random bits, not 64
-        return rng.random(n, dtype=np.float32)
-    bits = rng.bit_generator.random_raw((n + 1) // 2).view(np.uint32)[:n]
-    bits >>= 9
-    bits |= 0x3F800000  # the exponent of 1.0
-    uniforms = bits.view(np.float32)
-    uniforms -= 1.0
-    return uniforms

@@ -1,0 +1,373 @@
+"""The HeartPole step compiled with numba: :func:`heartpole.model.step` over many people at once.
+
+No formula lives here. :mod:`heartpole.model`'s functions are compiled *as written*, with three
+bindings of this module's: a float32 ``exp`` that LLVM can vectorise, ``where`` as a branch-free
+select and ``replace`` as numba's in-register tuple update. Their float literals become float32
+constants, so that the whole step computes in float32 (a Python float would make numba compute in
+float64, at half the vector width). What this module adds is the machinery around the step:
+
+* a counter-based random number generator: the ``j``-th uniform of an env's ``c``-th draw is a keyed
+  hash of ``(key, c, j)``. An env's state is its key and its counter, so copies and pickles continue
+  exactly, and two envs (or two policies evaluated alike) with the same key see the same draws.
+* :func:`step_envs` and :func:`reset_envs`, the loops over envs that the single and the vector env
+  both call; the single env is simply one env of them, so the two agree bit for bit.
+
+Compiled code is cached on disk (numba's ``cache=True``): the first use after an install compiles for a
+few seconds, later processes load it. With ``NUMBA_DISABLE_JIT=1`` everything runs as plain Python.
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Sequence
+from typing import Any
+
+import numba
+import numpy as np
+from numba import njit
+from numba.core import types as nbtypes
+from numba.cpython.unsafe.tuple import tuple_setitem
+from numba.extending import intrinsic
+from numba.np.unsafe.ndarray import to_fixed_tuple
+
+from heartpole import model
+
+JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+"""numba options for everything here: cached on disk; division follows NumPy (no ZeroDivisionError
+checks, which stop LLVM from vectorising); the GIL is released."""
+
+INLINE = {"inline": "always"}
+"""numba compiles each function on its own and calls it through its own calling convention, which LLVM
+cannot inline; the model's functions are inlined at numba's level instead, so that the loop over envs
+is one straight stretch of arithmetic that LLVM can vectorise."""
+
+
+F32, U64 = np.float32, np.uint64
+LOG2E, LN2_HIGH, LN2_LOW = F32(1.4426950408889634), F32(0.693359375), F32(-2.12194440e-4)
+EXP_LOW, EXP_HIGH = F32(-87.0), F32(88.0)
+
+
+@intrinsic
+def _int32_as_float32(typingctx: Any, bits: Any) -> Any:
+    """The float32 whose IEEE-754 bits are the int32 ``bits`` (a bit cast, no conversion)."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return builder.bitcast(args[0], context.get_value_type(nbtypes.float32))
+
+    return nbtypes.float32(nbtypes.int32), codegen
+
+
+@njit(**JIT, **INLINE)
+def exp32(x: Any) -> Any:
+    """``e ** x`` in float32 without branches or calls, so that LLVM vectorises it.
+
+    ``x`` is clamped to [-87, 88], where float32 ``exp`` is finite and normal (the formulas need nothing
+    beyond: their sigmoids are 0 or 1 there to float32 precision). Then ``e ** x = 2 ** n * e ** r`` with
+    ``|r| <= ln(2) / 2``; ``e ** r`` is its Taylor polynomial to degree 6 (relative error below 2e-7).
+    """
+    x = min(max(F32(x), EXP_LOW), EXP_HIGH)
+    n = np.floor(x * LOG2E + F32(0.5))
+    r = x - n * LN2_HIGH - n * LN2_LOW
+    p = F32(1.0 / 720.0)
+    p = p * r + F32(1.0 / 120.0)
+    p = p * r + F32(1.0 / 24.0)
+    p = p * r + F32(1.0 / 6.0)
+    p = p * r + F32(0.5)
+    p = p * r + F32(1.0)
+    p = p * r + F32(1.0)
+    return p * _int32_as_float32((np.int32(n) + np.int32(127)) << np.int32(23))
+
+
+@njit(**JIT, **INLINE)
+def where(condition: Any, a: Any, b: Any) -> Any:
+    """``a if condition else b``; LLVM turns it into a select, not a branch."""
+    return a if condition else b
+
+
+def _float32_constants(code: types.CodeType) -> types.CodeType:
+    """``code`` with its float literals made float32 constants, so numba keeps the arithmetic in float32."""
+    return code.replace(co_consts=tuple(F32(c) if type(c) is float else c for c in code.co_consts))
+
+
+def _compile_model() -> types.SimpleNamespace:
+    """Every function of :mod:`heartpole.model` compiled by numba, with this module's bindings."""
+    names = [
+        "sigmoid",
+        "gaussian",
+        "heart_attack_risk",
+        "alertness_decay",
+        "crippling_anxiety",
+        "ballmer",
+        "productivity",
+        "score",
+        "wake_alertness",
+        "initial_state",
+        "step",
+    ]
+    namespace: dict[str, Any] = {**vars(model), "exp": exp32, "where": where, "replace": tuple_setitem}
+    for name in names:
+        source = getattr(model, name)
+        function = types.FunctionType(_float32_constants(source.__code__), namespace, name, source.__defaults__)
+        function.__qualname__ = source.__qualname__
+        function.__module__ = source.__module__
+        namespace[name] = njit(**JIT, **INLINE)(function)
+    return types.SimpleNamespace(**{name: namespace[name] for name in names})
+
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The random numbers: a keyed hash of (key, counter, draw), in 32-bit integer arithmetic. numba would
+# widen uint32 arithmetic to 64 bits (half the vector lanes), so the four operations are LLVM's own.
+def _uint32_operation(name: str) -> Any:
+    @intrinsic
+    def operation(typingctx: Any, a: Any, b: Any) -> Any:
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            return getattr(builder, name)(args[0], args[1])
+
+        return nbtypes.uint32(nbtypes.uint32, nbtypes.uint32), codegen
+
+    operation.__doc__ = f"``a {name} b`` on 32-bit unsigned integers, wrapping around."
+    return operation
+
+
+mul32, add32, xor32, shr32 = (_uint32_operation(name) for name in ("mul", "add", "xor", "lshr"))
+
+if numba.config.DISABLE_JIT:  # intrinsics run only in compiled code: plain Python stands in for them
+    _int32_as_float32 = lambda bits: np.int32(bits).view(np.float32)  # noqa: E731
+    mul32 = lambda a, b: np.uint32((int(a) * int(b)) & 0xFFFFFFFF)  # noqa: E731
+    add32 = lambda a, b: np.uint32((int(a) + int(b)) & 0xFFFFFFFF)  # noqa: E731
+    xor32 = lambda a, b: np.uint32(int(a) ^ int(b))  # noqa: E731
+    shr32 = lambda a, b: np.uint32(int(a) >> int(b))  # noqa: E731
+    tuple_setitem = model.replace  # noqa: F811
+    to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
+
+compiled = _compile_model()
+""":mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs."""
+_step, _initial_state = compiled.step, compiled.initial_state  # module globals, as numba needs them
+
+U32 = np.uint32
+MIX_1, MIX_2, GOLDEN = U32(0x21F0AAAD), U32(0x735A2D97), U32(0x9E3779B9)
+TWO_TO_MINUS_24 = F32(2.0**-24)
+KEY_LOW, KEY_HIGH, COUNTER = 0, 1, 2
+"""The rows of an env's generator state (``rng[:, i]``, uint32): its 64-bit key and its draw counter."""
+
+
+@njit(**JIT, **INLINE)
+def mix32(x: Any) -> Any:
+    """A bijective hash of 32-bit values with strong avalanche (C. Wellons' ``lowbias32``, bias ~0.1)."""
+    x = xor32(x, shr32(x, U32(16)))
+    x = mul32(x, MIX_1)
+    x = xor32(x, shr32(x, U32(15)))
+    x = mul32(x, MIX_2)
+    return xor32(x, shr32(x, U32(15)))
+
+
+@njit(**JIT, **INLINE)
+def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
+    """The ``draw``-th uniform of an env's draw number ``counter``: a float32 in [0, 1).
+
+    Three rounds of :func:`mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
+    the last hash make the uniform, so every value is a multiple of ``2 ** -24``. A draw's first two
+    rounds are shared by its uniforms. An env's counter wraps around after 2 ** 32 draws.
+    """
+    h = mix32(xor32(U32(counter), U32(key_low)))
+    h = mix32(add32(h, U32(key_high)))
+    h = mix32(xor32(h, mul32(add32(U32(draw), U32(1)), GOLDEN)))
+    return F32(shr32(h, U32(8))) * TWO_TO_MINUS_24
+
+
+@njit(**JIT, **INLINE)
+def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
+    """The ``len(zeros) + 2`` uniforms of one step (:func:`heartpole.model.step`'s ``u``), as a tuple."""
+    u = zeros + (F32(0.0), F32(0.0))
+    for j in range(len(u)):
+        u = tuple_setitem(u, j, uniform(key_low, key_high, counter, j))
+    return u
+
+
+def generator_states(rng: np.random.Generator, count: int) -> np.ndarray:
+    """The generator states of ``count`` envs, ``(3, count)`` uint32: each a fresh 64-bit key drawn from
+    ``rng`` (in env order, one 64-bit draw each) and a counter at 0."""
+    keys = rng.integers(0, 2**64, size=count, dtype=np.uint64)
+    return np.stack([keys & np.uint64(0xFFFFFFFF), keys >> np.uint64(32), np.zeros_like(keys)]).astype(np.uint32)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The tables, packed into one float32 array: a call from Python unboxes one array, not dozens of numbers.
+SCALARS = ("heart_attack_proclivity", "heart_attack_penalty", "wake_low", "wake_width")
+OUTPUTS = ("reward", "productivity", "heart_attack_risk", "heart_attack", "score")
+"""The rows after the state in :func:`step_envs`'s ``envs`` array (``heart_attack`` as 1.0 or 0.0)."""
+
+
+def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
+    """``effects`` and ``tables`` as one float32 array: a row per action, then a row for ``tables``.
+
+    Row ``a``: effect_low, effect_width, rest_fade (``n`` values each), rest, drowsy, sleeps and a 0.
+    Last row: floor, fade, anxiety_relief (``n`` each), then :data:`SCALARS`. The rest offsets are
+    0, 1, ... and need only their number (:func:`layout`).
+    """
+    rows = [[*e.effect_low, *e.effect_width, *e.rest_fade, e.rest, e.drowsy, e.sleeps, 0.0] for e in effects]
+    rows.append([*tables.floor, *tables.fade, *tables.anxiety_relief, *(getattr(tables, k) for k in SCALARS)])
+    return np.array(rows, dtype=np.float32)
+
+
+def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple[tuple[None, ...], ...]:
+    """The ``layout`` argument of the kernels: tuples of ``None`` whose lengths are the numbers of
+    variables, rest offsets and per-action values. Compiled code is specialised on them, so its loops over
+    variables and actions have known lengths (LLVM unrolls them); ``None`` costs nothing to pass."""
+    per_action = num_actions * (3 * num_variables + 4)
+    return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * per_action)
+
+
+@njit(**JIT, **INLINE)
+def _take(values: Any, start: Any, zeros: Any) -> Any:
+    """``len(zeros)`` items of ``values`` (an array or a tuple) from ``start`` on, as a tuple."""
+    taken = zeros
+    for v in range(len(zeros)):
+        taken = tuple_setitem(taken, v, values[start + v])
+    return taken
+
+
+@njit(**JIT, **INLINE)
+def action_effects(row: Any, start: Any, zeros: Any) -> Any:
+    """The :class:`heartpole.model.ActionEffects` packed in ``row`` (an array or tuple) from ``start``."""
+    n = len(zeros)
+    return model.ActionEffects(
+        _take(row, start, zeros),
+        _take(row, start + n, zeros),
+        _take(row, start + 2 * n, zeros),
+        row[start + 3 * n],
+        row[start + 3 * n + 1],
+        row[start + 3 * n + 2],
+    )
+
+
+@njit(**JIT)
+def _fixed(values: Any, like: Any) -> Any:
+    """The first ``len(like)`` items of the array ``values`` as a tuple (numba needs ``len`` of an
+    argument itself to know the tuple's length, hence a function of its own, never inlined)."""
+    return to_fixed_tuple(values[: len(like)], len(like))
+
+
+@njit(**JIT, **INLINE)
+def _tables(packed: Any, zeros: Any, rest_offsets: Any) -> Any:
+    """The :class:`heartpole.model.StepTables` in :func:`pack`'s last row."""
+    n, last = len(zeros), packed[packed.shape[0] - 1]
+    return model.StepTables(
+        _take(last, 0, zeros),
+        _take(last, n, zeros),
+        _take(last, 2 * n, zeros),
+        rest_offsets,
+        last[3 * n],
+        last[3 * n + 1],
+        last[3 * n + 2],
+        last[3 * n + 3],
+    )
+
+
+@njit(**JIT, **INLINE)
+def _unpack(packed: Any, layout: Any) -> Any:
+    """``(zeros, tables, by_action)`` from :func:`pack`'s array: a state of zeros, the
+    :class:`heartpole.model.StepTables`, and the per-action columns as one flat tuple, column by column
+    (item ``c * num_actions + a`` is column ``c`` of action ``a``)."""
+    zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
+    tables = _tables(packed, zeros, _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1]))
+    by_action = _fixed(packed[: packed.shape[0] - 1].T.copy().ravel(), layout[2])  # column by column
+    return zeros, tables, by_action
+
+
+@njit(**JIT, **INLINE)
+def _chosen(by_action: Any, start: Any, num_actions: Any, action: Any) -> Any:
+    """``by_action[start + action]``, selected with masks (a gather would stop LLVM's vectoriser)."""
+    value = by_action[start]
+    for k in range(1, num_actions):
+        value = where(action == k, by_action[start + k], value)
+    return value
+
+
+@njit(**JIT, **INLINE)
+def _chosen_tuple(by_action: Any, start: Any, num_actions: Any, action: Any, zeros: Any) -> Any:
+    values = zeros
+    for v in range(len(zeros)):
+        values = tuple_setitem(values, v, _chosen(by_action, start + v * num_actions, num_actions, action))
+    return values
+
+
+@njit(**JIT, **INLINE)
+def chosen_effects(by_action: Any, action: Any, zeros: Any) -> Any:
+    """The :class:`heartpole.model.ActionEffects` of ``action`` from :func:`_unpack`'s ``by_action``."""
+    n = len(zeros)
+    a = len(by_action) // (3 * n + 4)
+    return model.ActionEffects(
+        _chosen_tuple(by_action, 0, a, action, zeros),
+        _chosen_tuple(by_action, n * a, a, action, zeros),
+        _chosen_tuple(by_action, 2 * n * a, a, action, zeros),
+        _chosen(by_action, 3 * n * a, a, action),
+        _chosen(by_action, (3 * n + 1) * a, a, action),
+        _chosen(by_action, (3 * n + 2) * a, a, action),
+    )
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The loops over envs. Array indices are unsigned: numba then skips its negative-index wraparound, which
+# hides the addresses from LLVM's vectoriser.
+@njit(**JIT)
+def step_envs(envs: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """Step every env ``i`` with ``actions[i]``, in place.
+
+    ``envs[:n, i]`` is env ``i``'s state (``n`` variables); the step's results go to the rows after it,
+    in :data:`OUTPUTS` order (one array for both keeps LLVM's aliasing checks few enough to vectorise).
+    Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
+    ``packed`` and ``layout`` are :func:`pack`'s and :func:`layout`'s.
+    """
+    zeros, t, by_action = _unpack(packed, layout)
+    n = len(zeros)
+    for index in range(actions.shape[0]):
+        i = U64(index)
+        s = zeros
+        for v in range(n):
+            s = tuple_setitem(s, v, envs[U64(v), i])
+        u = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
+        s, reward, worked, risk, attack, new_score = _step(s, chosen_effects(by_action, actions[i], zeros), u, t)
+        for v in range(n):
+            envs[U64(v), i] = s[v]
+        rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
+        envs[U64(n), i] = reward
+        envs[U64(n + 1), i] = worked
+        envs[U64(n + 2), i] = risk
+        envs[U64(n + 3), i] = F32(1.0) if attack else F32(0.0)
+        envs[U64(n + 4), i] = new_score
+
+
+@njit(**JIT)
+def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
+    """Step one env (the single env's path): its ``state`` (a float32 array) in place, with ``action``.
+
+    The same step and the same draws as an env of :func:`step_envs`, without the loop: the action's
+    effects are looked up, not selected, and ``layout`` needs only its first two tuples. Returns
+    ``(reward, productivity, heart_attack_risk, heart_attack, score)``.
+    """
+    zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
+    rest_offsets = _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1])
+    t = _tables(packed, zeros, rest_offsets)
+    s = _take(state, 0, zeros)
+    u = draws(rng[KEY_LOW], rng[KEY_HIGH], rng[COUNTER], zeros)
+    s, reward, worked, risk, attack, new_score = _step(s, action_effects(packed[action], 0, zeros), u, t)
+    for v in range(len(zeros)):
+        state[v] = s[v]
+    rng[COUNTER] = add32(rng[COUNTER], U32(1))
+    return reward, worked, risk, attack, new_score
+
+
+@njit(**JIT)
+def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> None:
+    """Start env ``i`` afresh wherever ``which[i]``: every variable 0, then waking up with one draw."""
+    zeros, t, _ = _unpack(packed, layout)
+    wake = len(zeros)  # the wake-up uniform of a draw, as in a step
+    for i in range(which.shape[0]):
+        if which[i]:
+            u = uniform(rng[KEY_LOW, i], rng[KEY_HIGH, i], rng[COUNTER, i], wake)
+            s = _initial_state(zeros, u, t)
+            for v in range(len(zeros)):
+                envs[v, i] = s[v]
+            rng[COUNTER, i] = add32(rng[COUNTER, i], U32(1))
