@@ -33,13 +33,12 @@ ALERTNESS, HYPERTENSION, INTOXICATION, TIME_SINCE_SLEPT, TIME_ELAPSED, WORK_DONE
 
 
 # ------------------------------------------------------------------------------------------------------
-# v0 is pinned: v1, the variants API and later work must not change v0's trajectories. Recorded when the
-# speed work of issue 6 reorganised the draws (one uniform column fewer, 23-bit float32 uniforms in the
-# vector env) and reordered the formulas' arithmetic; the dynamics' distribution is tested in
-# test_faithfulness.py.
+# v0 is pinned: v1, the variants API and later work must not change v0's trajectories. Recorded for package
+# 0.3, when the step became one compiled function (heartpole.kernel) in float32 with a counter-based random
+# number generator; the dynamics' distribution is tested in test_faithfulness.py.
 
-V0_SINGLE_SHA256 = "c92e7561ff9eb99eee2f15aedb6f3131d6321b680d9b9cf2f642004196437d5e"
-V0_VECTOR_SHA256 = "ddb61a288d4b60aa540b36c0bf47abfe11b6c575e3a341c31e4553f1f4043c89"
+V0_SINGLE_SHA256 = "d85cad1f199695d74a296d49397a108abe38ca6a550156a78546f4619c5b85e7"
+V0_VECTOR_SHA256 = "f04b4cb0ef7499b5c8375a3f4fd88faccbfaa44a27236cf0488525fec700f270"
 
 
 def v0_single_hash(seed: int = 2024, steps: int = 3000) -> str:
@@ -64,7 +63,7 @@ def v0_vector_hash(seed: int = 2024, steps: int = 1200, num_envs: int = 16) -> s
     digest.update(obs.tobytes())
     for actions in np.random.default_rng(seed).integers(0, 4, (steps, num_envs)):
         obs, reward, _, truncated, info = env.step(actions)
-        for array in (obs, reward, info["heart_attack"], truncated):
+        for array in (obs, reward, info.get("heart_attack", np.array([])), truncated):  # none on a restart
             digest.update(array.tobytes())
     return digest.hexdigest()
 
@@ -78,7 +77,7 @@ def test_v0_keeps_its_spaces_actions_and_formula() -> None:
     dynamics = heartpole.Dynamics()
     assert [a.name for a in dynamics.actions] == ["do_nothing", "drink_coffee", "drink_beer", "sleep"]
     assert dynamics.tables.anxiety_relief == (0.0,) * 6  # no calm: productivity is the tutorial's
-    assert [len(part) for part in dynamics.layout] == [6, 1, 4 * (3 * 6 + 4)]
+    assert [len(part) for part in dynamics.layout] == [6, 0, 4 * (3 * 6 + 4)]
     assert heartpole.HeartPole().observation_space.shape == (6,)
     assert productivity(2.7, 0.02) == productivity(2.7, 0.02, 0.0)
 

@@ -57,9 +57,8 @@ def test_next_step_autoreset_restarts_an_env_on_the_step_after_truncation() -> N
     obs, reward, terminated, truncated, _ = env.step(np.array([1, 2, 0]))
     assert truncated.all() and not terminated.any() and obs[:, 4].min() >= 3
     obs, reward, terminated, truncated, info = env.step(np.array([3, 3, 3]))  # actions ignored
-    assert not truncated.any() and (reward == 0).all() and not info["heart_attack"].any()
+    assert not truncated.any() and (reward == 0).all() and info == {}  # as reset() gives
     assert (obs[:, 1:] == 0).all() and ((obs[:, 0] >= 0.7) & (obs[:, 0] <= 1.3)).all()
-    assert not info["_score"].any()
     obs, *_ = env.step(np.array([0, 0, 0]))
     assert (obs[:, 4] == 1).all()
 
@@ -74,6 +73,18 @@ def test_same_step_autoreset_reports_the_final_observation() -> None:
     assert (info["final_obs"][:, 4] == 2).all()  # two half-hours worked
     assert (obs[:, 4] == 0).all()  # already the next episode
     assert info["final_info"]["score"].shape == (2,)
+    np.testing.assert_array_equal(info["final_info"]["action"], [0, 1])
+
+
+def test_info_has_the_single_envs_keys_with_action_indices() -> None:
+    env = make(3)
+    env.reset(seed=0)
+    info = env.step(np.array([2, 0, 3]))[4]
+    single = heartpole.HeartPole()
+    single.reset(seed=0)
+    assert {k for k in info if not k.startswith("_")} == set(single.step(2)[4])
+    np.testing.assert_array_equal(info["action"], [2, 0, 3])
+    assert all(info["_" + k].all() for k in info if not k.startswith("_"))
 
 
 BAD_ACTIONS = [

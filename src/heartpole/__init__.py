@@ -27,7 +27,7 @@ from heartpole.vector import HeartPoleVectorEnv
 
 register_envs()
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 __all__ = [
     "Action",

@@ -92,7 +92,7 @@ def step_tables(
         floor=tuple(f32(v.low) for v in variables),
         fade=tuple(f32(f) for f in fade),
         anxiety_relief=tuple(f32(v.anxiety_relief) for v in variables),
-        rest_offsets=tuple(f32(k) for k in range(max(1, longest_drowsy))),  # numba loops over no empty tuple
+        rest_offsets=tuple(f32(k) for k in range(longest_drowsy)),
         heart_attack_proclivity=f32(params.heart_attack_proclivity),
         heart_attack_penalty=f32(params.heart_attack_penalty),
         wake_low=f32(wake_low),

@@ -178,10 +178,15 @@ def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
 
 @njit(**JIT, **INLINE)
 def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
-    """The ``len(zeros) + 2`` uniforms of one step (:func:`heartpole.model.step`'s ``u``), as a tuple."""
+    """The ``len(zeros) + 2`` uniforms of one step (:func:`heartpole.model.step`'s ``u``), as a tuple.
+
+    The variables the step keeps itself (``time_since_slept`` ... ``work_done``) take no effects, so their
+    uniforms are 0 and cost nothing: the compiled loop drops their hashes.
+    """
     u = zeros + (F32(0.0), F32(0.0))
     for j in range(len(u)):
-        u = tuple_setitem(u, j, uniform(key_low, key_high, counter, j))
+        kept_by_the_step = model.TIME_SINCE_SLEPT <= j <= model.WORK_DONE
+        u = tuple_setitem(u, j, where(kept_by_the_step, F32(0.0), uniform(key_low, key_high, counter, j)))
     return u
 
 
@@ -195,6 +200,9 @@ def generator_states(rng: np.random.Generator, count: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------------
 # The tables, packed into one float32 array: a call from Python unboxes one array, not dozens of numbers.
 SCALARS = ("heart_attack_proclivity", "heart_attack_penalty", "wake_low", "wake_width")
+ACTION_DTYPE = np.int32
+"""The dtype of :func:`step_envs`'s actions: with 32-bit integers in the loop, LLVM vectorises it eight
+floats wide, with 64-bit ones four wide."""
 OUTPUTS = ("reward", "productivity", "heart_attack_risk", "heart_attack", "score")
 """The rows after the state in :func:`step_envs`'s ``envs`` array (``heart_attack`` as 1.0 or 0.0)."""
 

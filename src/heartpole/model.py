@@ -117,7 +117,7 @@ class StepTables(NamedTuple):
 
     Per variable ``v``: its lower bound ``floor[v]``, its share left after a half-hour ``fade[v]`` and
     its ``anxiety_relief[v]``. ``rest_offsets`` are 0, 1, ... up to the longest drowsy rest of the
-    variant's actions, at least one. Built by :class:`heartpole.dynamics.Dynamics`.
+    variant's actions (none for v0). Built by :class:`heartpole.dynamics.Dynamics`.
     """
 
     floor: tuple[Number, ...]

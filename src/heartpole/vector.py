@@ -17,6 +17,9 @@ from heartpole.actions import Action
 from heartpole.env import build_dynamics, check_render_mode, observation_space
 from heartpole.model import Variable
 
+INFO_KEYS = ("action", "heart_attack", "heart_attack_risk", "productivity", "score")
+"""The keys of a step's ``info`` (each with its ``_key`` mask)."""
+
 
 class HeartPoleVectorEnv(VectorEnv):
     """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
@@ -30,15 +33,17 @@ class HeartPoleVectorEnv(VectorEnv):
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
     Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
     variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows. ``info`` holds arrays of
-    ``num_envs`` values (``action``, the index of the action taken or -1 where an env was restarted;
-    ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with Gymnasium's ``_key``
-    masks (one shared mask array: every key is present for the same envs).
+    ``num_envs`` values (:data:`INFO_KEYS`: ``action``, the index of the action taken, where the single env
+    gives its name; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with
+    Gymnasium's ``_key`` masks (one shared mask array: every key is present for every env).
 
-    Autoreset: by default Gymnasium's ``NEXT_STEP`` mode. An env whose episode was truncated is reset by
-    the *next* call to ``step``, which ignores its action and returns its first observation with reward 0
-    and ``truncated=False``. With ``autoreset_mode=AutoresetMode.SAME_STEP`` the env is reset within the
-    step that ends it; its last observation and info are then in ``info["final_obs"]`` and
-    ``info["final_info"]`` (the mode Stable-Baselines3's VecEnv expects).
+    Every episode starts at ``reset`` and is truncated after ``max_steps`` decisions, so all envs' episodes
+    end together. Autoreset: by default Gymnasium's ``NEXT_STEP`` mode: the call to ``step`` after the
+    episodes ended starts new ones, ignoring the actions, and returns the first observations with reward 0,
+    ``truncated=False`` and an empty ``info`` (as ``reset`` does). With
+    ``autoreset_mode=AutoresetMode.SAME_STEP`` the envs restart within the step that ends them; the last
+    observations and infos are then in ``info["final_obs"]`` and ``info["final_info"]`` (the mode
+    Stable-Baselines3's VecEnv expects).
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
     """
@@ -76,8 +81,8 @@ class HeartPoleVectorEnv(VectorEnv):
         self._envs = np.zeros((n + len(kernel.OUTPUTS), self.num_envs), dtype=np.float32)  # states, then results
         self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
         self._started = False
-        self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._needs_reset = np.zeros(self.num_envs, dtype=bool)
+        self._steps = 0  # every env's episode starts at reset and lasts max_steps: they end together
+        self._ended = False  # NEXT_STEP autoreset: the episodes ended on the last step
         self._last_actions = np.full(self.num_envs, -1)
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
@@ -96,10 +101,7 @@ class HeartPoleVectorEnv(VectorEnv):
         super().reset(seed=seed)
         self._rng[:] = kernel.generator_states(self.np_random, self.num_envs)
         self._started = True
-        self._restart(np.ones(self.num_envs, dtype=bool))
-        self._steps[:] = 0
-        self._needs_reset[:] = False
-        self._forget_last_steps(np.ones(self.num_envs, dtype=bool))
+        self._restart()
         return self._observations(), {}
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -107,36 +109,33 @@ class HeartPoleVectorEnv(VectorEnv):
         action = self._validate(actions)
         if not self._started:
             raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
+        n = self.num_envs
+        if self._ended:  # NEXT_STEP autoreset: every env starts afresh, ignoring its action
+            self._restart()
+            nothing = np.zeros(n, dtype=bool)
+            return self._observations(), np.zeros(n, dtype=np.float32), nothing, nothing.copy(), {}
         kernel.step_envs(self._envs, action, self._rng, self.dynamics.packed, self.dynamics.layout)
         reward, worked, risk, attack, new_score = self._envs[len(self.dynamics.variables) :].copy()
         attack = attack > 0.5
         self._steps += 1
-        truncated = self._steps >= self.max_steps
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        info = {"action": action.copy(), "heart_attack": attack, "heart_attack_risk": risk, "productivity": worked,
-                "score": new_score}
-        if self._needs_reset.any():  # NEXT_STEP autoreset: these envs start afresh and ignore their action
-            restart = self._needs_reset
-            self._restart(restart)
-            reward[restart], truncated[restart], attack[restart] = 0.0, False, False
-            info["action"][restart] = -1
-            info = self._masked(info, ~restart)
-        else:
-            info = self._masked(info, None)
-        if self.render_mode is not None:  # copies: the caller owns `action`, and `attack` goes out in info
-            self._last_actions, self._last_attacks = info["action"].copy(), attack.copy()
+        ended = self._steps >= self.max_steps
+        truncated, terminated = np.full(n, ended), np.zeros(n, dtype=bool)
+        present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
+        info: dict[str, Any] = {}
+        for key, value in zip(INFO_KEYS, (action, attack, risk, worked, new_score)):
+            info[key], info["_" + key] = value, present
+        if self.render_mode is not None:  # copies: `action` and `attack` go out in info
+            self._last_actions, self._last_attacks = action.astype(np.int64), attack.copy()
             self._heart_attacks += attack
         obs = self._observations()
-        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
-            if truncated.any():
-                info["final_obs"] = np.where(truncated[:, None], obs, np.nan).astype(np.float32)
-                info["_final_obs"] = truncated.copy()
-                info["final_info"] = {k: v for k, v in info.items() if not k.startswith(("final", "_final"))}
-                info["_final_info"] = truncated.copy()
-                self._restart(truncated)
-                obs = self._observations()
+        if ended and self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            info["final_obs"], info["_final_obs"] = obs, truncated.copy()
+            info["final_info"] = {key: value for key, value in info.items() if not key.startswith(("final", "_final"))}
+            info["_final_info"] = truncated.copy()
+            self._restart()
+            obs = self._observations()
         else:
-            self._needs_reset = truncated.copy()
+            self._ended = ended
         return obs, reward, terminated, truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
@@ -153,7 +152,7 @@ class HeartPoleVectorEnv(VectorEnv):
                     action=self.dynamics.actions[last].name if last >= 0 else None,
                     heart_attack=bool(self._last_attacks[i]),
                     heart_attacks=int(self._heart_attacks[i]),
-                    step=int(self._steps[i]),
+                    step=self._steps,
                     max_steps=self.max_steps,
                 )
             )
@@ -168,29 +167,16 @@ class HeartPoleVectorEnv(VectorEnv):
         """The states, ``(num_variables, num_envs)``: a view of the rows of ``_envs`` that hold them."""
         return self._envs[: len(self.dynamics.variables)]
 
-    def _restart(self, which: np.ndarray) -> None:
-        """Start the envs in ``which`` (a mask) afresh; their random numbers go on from their counters."""
-        kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
-        self._steps[which] = 0
-        self._forget_last_steps(which)
-
-    def _forget_last_steps(self, which: np.ndarray) -> None:
-        """Rendering's memory of the envs in ``which`` (a mask): no last action, no heart attacks yet."""
-        self._last_actions[which] = -1
-        self._last_attacks[which] = False
-        self._heart_attacks[which] = 0
-
-    @staticmethod
-    def _masked(info: dict[str, Any], mask: np.ndarray | None) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        present = np.ones(len(next(iter(info.values()))), dtype=bool) if mask is None else mask.copy()
-        for key, value in info.items():
-            out[key] = value
-            out["_" + key] = present  # one mask for all keys: every key is present for the same envs
-        return out
+    def _restart(self) -> None:
+        """Start every env afresh; their random numbers go on from their counters."""
+        everyone = np.ones(self.num_envs, dtype=bool)
+        kernel.reset_envs(self._envs, self._rng, everyone, self.dynamics.packed, self.dynamics.layout)
+        self._steps, self._ended = 0, False
+        self._last_actions[:], self._last_attacks[:], self._heart_attacks[:] = -1, False, 0  # for rendering
 
     def _validate(self, actions: Any) -> np.ndarray:
-        """The actions as an index array, or ``ValueError`` naming what is wrong and what is accepted."""
+        """The actions as the kernel's index array (a copy), or ``ValueError`` naming what is wrong and what
+        is accepted."""
         n, num_actions = self.num_envs, len(self.dynamics.actions)
         expected = f"an integer array of shape ({n},) with values in 0..{num_actions - 1}"
         array = np.asarray(actions)
@@ -198,9 +184,9 @@ class HeartPoleVectorEnv(VectorEnv):
             raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got shape {array.shape}")
         if array.dtype.kind not in "iu":
             raise ValueError(f"HeartPoleVectorEnv.step expects {expected}; got dtype {array.dtype}")
-        index = array.astype(np.intp, copy=False)
-        if n and index.view(np.uintp).max() >= num_actions:  # negative indices wrap around to huge ones
+        unsigned = array.view(array.dtype.str.replace("i", "u"))  # negative values become huge ones
+        if n and unsigned.max() >= num_actions:
             raise ValueError(
                 f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
             )
-        return index
+        return array.astype(kernel.ACTION_DTYPE)
