@@ -1,27 +1,32 @@
 """HeartPole's speed against Gymnasium's CartPole, measured side by side in one run.
 
-    python benchmarks/speed.py                 # all sections, a few minutes on a 2-core machine
-    python benchmarks/speed.py --quick         # fewer repeats, fewer sizes
-    python benchmarks/speed.py --only single   # one section: single, vector, scaling, flat
+    python benchmarks/speed.py                  # every section, about ten minutes on a 2-core machine
+    python benchmarks/speed.py --quick          # fewer repeats
+    python benchmarks/speed.py --only vector    # one section: single, vector, blas, flat, compile
+    python benchmarks/speed.py --busy           # the same with a second CPU-bound process running
 
-Every figure is steps per second with random actions (all of an env's actions), the best of several
-interleaved repeats (the machine is shared; the best run is the least disturbed), and is reported as a
-ratio against the anchor measured in the same run. Actions are drawn before timing, so the figures
-measure the envs alone. Each measurement runs in a fresh Python process: glibc's allocator adapts its
-thresholds to the arrays a process frees, and in one process the env measured first changed the speed
-of the other by up to 25%.
+Every figure is a ratio against its anchor measured in the same run: HeartPole and CartPole are measured
+in turn, ``--repeats`` times, each time in a fresh Python process (the allocator's state left by one env
+changes the other's speed), and the ratio of each pair is reported as the median and the range over the
+pairs. Env steps run under random actions drawn before timing. The goals are issue 13's.
 """
 
 from __future__ import annotations
 
 import argparse
 import gc
+import os
 import platform
+import shutil
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from functools import partial
 from typing import Any
 
 import gymnasium as gym
@@ -32,13 +37,30 @@ import heartpole
 
 Factory = Callable[[], Any]
 
+SINGLE_ENVS: dict[str, Factory] = {
+    "CartPole-v1": CartPoleEnv,
+    "HeartPole-v0": heartpole.HeartPole,
+    "make:CartPole-v1": lambda: gym.make("CartPole-v1"),
+    "make:HeartPole-v0": lambda: gym.make("HeartPole-v0"),
+}
+VECTOR_ENVS: dict[str, Callable[[int], Any]] = {
+    "CartPoleVectorEnv": lambda n: CartPoleVectorEnv(num_envs=n),
+    "HeartPoleVectorEnv": lambda n: heartpole.HeartPoleVectorEnv(n),
+}
+VECTOR_GOALS = {256: 2.0, 1024: 3.0, 16384: 5.0, 65536: 3.0}
+SINGLE_GOALS = {"HeartPole-v0": 3.0, "make:HeartPole-v0": 2.5}
+
 
 def single_rate(make: Factory, steps: int, seed: int = 0) -> float:
-    """Steps per second of one unwrapped env under random actions (reset when an episode ends)."""
+    """Steps per second of one env under random actions (reset when an episode ends)."""
     env = make()
     env.reset(seed=seed)
     actions = np.random.default_rng(seed).integers(0, env.action_space.n, size=steps).tolist()
     step, reset = env.step, env.reset
+    for action in actions[:1000]:  # warm-up
+        _, _, terminated, truncated, _ = step(action)
+        if terminated or truncated:
+            reset()
     gc.disable()
     start = time.perf_counter()
     for action in actions:
@@ -56,23 +78,12 @@ def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0) -> floa
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     actions = [rng.integers(0, env.single_action_space.n, size=num_envs) for _ in range(min(steps, 64))]
-    env.step(actions[0])  # warm-up
+    for t in range(3):  # warm-up
+        env.step(actions[t % len(actions)])
     start = time.perf_counter()
     for t in range(steps):
         env.step(actions[t % len(actions)])
     return steps * num_envs / (time.perf_counter() - start)
-
-
-SINGLE_ENVS: dict[str, Factory] = {
-    "CartPole-v1": CartPoleEnv,
-    "HeartPole-v0": heartpole.HeartPole,
-    "make:CartPole-v1": lambda: gym.make("CartPole-v1"),
-    "make:HeartPole-v0": lambda: gym.make("HeartPole-v0"),
-}
-VECTOR_ENVS: dict[str, Callable[[int], Any]] = {
-    "CartPoleVectorEnv": lambda n: CartPoleVectorEnv(num_envs=n),
-    "HeartPoleVectorEnv": lambda n: heartpole.HeartPoleVectorEnv(n),
-}
 
 
 def measure(env: str, num_envs: int, steps: int) -> float:
@@ -82,53 +93,74 @@ def measure(env: str, num_envs: int, steps: int) -> float:
     return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps)
 
 
-def fresh(env: str, num_envs: int, steps: int) -> Callable[[], float]:
-    """A measurement to run in a fresh Python process (see the module docstring for why)."""
+def fresh(env: str, num_envs: int, steps: int, environment: dict[str, str] | None = None) -> float:
+    """:func:`measure` in a fresh Python process (with ``environment`` instead of this one's, if given)."""
     command = [sys.executable, __file__, "--measure", env, str(num_envs), str(steps)]
-    return lambda: float(subprocess.run(command, check=True, capture_output=True, text=True).stdout)
+    return float(subprocess.run(command, check=True, capture_output=True, text=True, env=environment).stdout)
 
 
-def best_of(repeats: int, *measurements: Callable[[], float]) -> list[float]:
-    """Run the measurements interleaved ``repeats`` times; the best rate of each."""
-    best = [0.0] * len(measurements)
-    for _ in range(repeats):
-        for i, measure in enumerate(measurements):
-            best[i] = max(best[i], measure())
-    return best
+def paired_ratios(repeats: int, subject: Callable[[], float], anchor: Callable[[], float]) -> list[float]:
+    """``subject / anchor`` for ``repeats`` pairs measured in turn."""
+    return [subject() / anchor() for _ in range(repeats)]
 
 
-def report(name: str, rate: float, anchor_name: str, anchor: float, goal: float | None = None) -> None:
-    ratio = rate / anchor
-    verdict = "" if goal is None else f"  (goal >= {goal:.1f}x: {'met' if ratio >= goal else 'NOT met'})"
-    print(f"  {name:<34} {rate:>14,.0f} steps/s   {ratio:5.2f}x {anchor_name}{verdict}")
+def report(name: str, ratios: list[float], anchor: str, goal: float | None = None) -> None:
+    median = statistics.median(ratios)
+    verdict = "" if goal is None else f"  goal >= {goal:.1f}x: {'met' if median >= goal else 'NOT met'}"
+    print(f"  {name:<36} {median:5.2f}x {anchor} (range {min(ratios):.2f}-{max(ratios):.2f}){verdict}", flush=True)
 
 
 def section_single(repeats: int) -> None:
-    print("single env, unwrapped, random actions")
+    print(f"single env, random actions: ratio of steps/s, median (range) of {repeats} pairs")
     steps = 100_000
-    cartpole, heart, made_cartpole, made_heart = best_of(
-        repeats, *(fresh(env, 0, steps) for env in SINGLE_ENVS)
+    unwrapped = paired_ratios(repeats, lambda: fresh("HeartPole-v0", 0, steps), lambda: fresh("CartPole-v1", 0, steps))
+    report("HeartPole-v0 unwrapped", unwrapped, "CartPole-v1 unwrapped", SINGLE_GOALS["HeartPole-v0"])
+    made = paired_ratios(
+        repeats, lambda: fresh("make:HeartPole-v0", 0, steps), lambda: fresh("make:CartPole-v1", 0, steps)
     )
-    report("CartPole-v1 unwrapped (anchor)", cartpole, "CartPole", cartpole)
-    report("HeartPole-v0 unwrapped", heart, "CartPole", cartpole, goal=3.0)
-    report("CartPole-v1 via gym.make", made_cartpole, "CartPole", cartpole)
-    report("HeartPole-v0 via gym.make", made_heart, "CartPole via make", made_cartpole)
+    report("HeartPole-v0 via gym.make", made, "CartPole-v1 via gym.make", SINGLE_GOALS["make:HeartPole-v0"])
 
 
-def section_vector(repeats: int, num_envs: int = 16384) -> None:
-    print(f"vector env, {num_envs} envs, random actions")
-    steps = 300
-    cartpole, heart = best_of(repeats, *(fresh(env, num_envs, steps) for env in VECTOR_ENVS))
-    report("CartPoleVectorEnv (anchor)", cartpole, "CartPoleVec", cartpole)
-    report("HeartPoleVectorEnv", heart, "CartPoleVec", cartpole, goal=3.0)
-
-
-def section_scaling(repeats: int, sizes: list[int]) -> None:
-    print("vector env scaling (env-steps/s; ratio against CartPoleVectorEnv of the same size)")
+def section_vector(repeats: int, sizes: list[int]) -> None:
+    print(f"vector env, random actions: ratio of env-steps/s, median (range) of {repeats} pairs")
     for n in sizes:
-        steps = max(20, min(3000, 4_000_000 // n))
-        cartpole, heart = best_of(repeats, *(fresh(env, n, steps) for env in VECTOR_ENVS))
-        report(f"HeartPoleVectorEnv n={n}", heart, f"CartPoleVec n={n}", cartpole)
+        steps = max(30, min(3000, 6_000_000 // n))
+        ratios = paired_ratios(
+            repeats, partial(fresh, "HeartPoleVectorEnv", n, steps), partial(fresh, "CartPoleVectorEnv", n, steps)
+        )
+        report(f"HeartPoleVectorEnv n={n}", ratios, f"CartPoleVectorEnv n={n}", VECTOR_GOALS.get(n))
+
+
+def section_blas(repeats: int, n: int = 16384) -> None:
+    print("vector env with OpenBLAS limited to one thread and with its default threads (no BLAS in the step)")
+    steps = max(30, 6_000_000 // n)
+    for threads in ("1", None):
+        environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+        if threads:
+            environment["OPENBLAS_NUM_THREADS"] = threads
+        ratios = paired_ratios(
+            repeats,
+            partial(fresh, "HeartPoleVectorEnv", n, steps, environment),
+            partial(fresh, "CartPoleVectorEnv", n, steps, environment),
+        )
+        label = f"OPENBLAS_NUM_THREADS={threads}" if threads else "OpenBLAS default threads"
+        report(f"n={n}, {label}", ratios, "CartPoleVectorEnv")
+
+
+def section_compile() -> None:
+    print("compile time of the kernels (v0's single and vector env), in a fresh process")
+    script = (
+        "import heartpole, numpy as np; e = heartpole.HeartPole(); e.reset(seed=0); e.step(0); "
+        "v = heartpole.HeartPoleVectorEnv(4); v.reset(seed=0); v.step(np.zeros(4, dtype=int))"
+    )
+    cache = tempfile.mkdtemp(prefix="heartpole-numba-")
+    try:
+        for label in ("first use (empty cache)", "cached"):
+            start = time.perf_counter()
+            subprocess.run([sys.executable, "-c", script], check=True, env={**os.environ, "NUMBA_CACHE_DIR": cache})
+            print(f"  {label:<36} {time.perf_counter() - start:6.1f} s (process start and imports included)")
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
 
 
 def section_flat(chunks: int = 10, chunk_steps: int = 50_000) -> None:
@@ -150,29 +182,51 @@ def section_flat(chunks: int = 10, chunk_steps: int = 50_000) -> None:
     print(f"  traced memory: first {memory[0] / 1e3:,.0f} kB, last {memory[-1] / 1e3:,.0f} kB")
 
 
+BUSY_LOOP = "while True: sum(i * i for i in range(10_000))"
+
+
+@contextmanager
+def busy(enabled: bool) -> Iterator[None]:
+    """With ``enabled``, a second CPU-bound process runs until the block ends."""
+    process = subprocess.Popen([sys.executable, "-c", BUSY_LOOP]) if enabled else None
+    try:
+        yield
+    finally:
+        if process is not None:
+            process.terminate()
+            process.wait()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="fewer repeats and sizes")
-    parser.add_argument("--only", choices=["single", "vector", "scaling", "flat"], help="run one section")
+    parser.add_argument("--quick", action="store_true", help="3 pairs per figure instead of 7")
+    parser.add_argument("--repeats", type=int, help="pairs per figure")
+    parser.add_argument("--busy", action="store_true", help="run a second CPU-bound process meanwhile")
+    parser.add_argument("--only", choices=["single", "vector", "blas", "flat", "compile"], help="one section")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[256, 1024, 16384, 65536], help="vector sizes")
     parser.add_argument("--measure", nargs=3, metavar=("ENV", "NUM_ENVS", "STEPS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
         env, num_envs, steps = args.measure
         print(measure(env, int(num_envs), int(steps)))
         return
-    repeats = 2 if args.quick else 5
-    sizes = [1, 64, 1024, 16384] if args.quick else [1, 16, 256, 1024, 4096, 16384, 65536]
-    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
-          f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}")
+    repeats = args.repeats or (3 if args.quick else 7)
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.python_implementation()} "
+        f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}, "
+        f"heartpole {heartpole.__version__}{', with a second CPU-bound process' if args.busy else ''}"
+    )
     sections = {
         "single": lambda: section_single(repeats),
-        "vector": lambda: section_vector(repeats),
-        "scaling": lambda: section_scaling(max(1, repeats // 2), sizes),
+        "vector": lambda: section_vector(repeats, args.sizes),
+        "blas": lambda: section_blas(max(3, repeats // 2)),
+        "compile": section_compile,
         "flat": section_flat,
     }
-    for name, run in sections.items():
-        if args.only in (None, name):
-            run()
+    with busy(args.busy):
+        for name, run in sections.items():
+            if args.only in (None, name):
+                run()
 
 
 if __name__ == "__main__":
