@@ -18,7 +18,6 @@ few seconds, later processes load it. With ``NUMBA_DISABLE_JIT=1`` everything ru
 
 from __future__ import annotations
 
-import types
 from collections.abc import Sequence
 from typing import Any
 
@@ -84,37 +83,6 @@ def where(condition: Any, a: Any, b: Any) -> Any:
     return a if condition else b
 
 
-def _float32_constants(code: types.CodeType) -> types.CodeType:
-    """``code`` with its float literals made float32 constants, so numba keeps the arithmetic in float32."""
-    return code.replace(co_consts=tuple(F32(c) if type(c) is float else c for c in code.co_consts))
-
-
-def _compile_model() -> types.SimpleNamespace:
-    """Every function of :mod:`heartpole.model` compiled by numba, with this module's bindings."""
-    names = [
-        "sigmoid",
-        "gaussian",
-        "heart_attack_risk",
-        "alertness_decay",
-        "crippling_anxiety",
-        "ballmer",
-        "productivity",
-        "score",
-        "wake_alertness",
-        "initial_state",
-        "step",
-    ]
-    namespace: dict[str, Any] = {**vars(model), "exp": exp32, "where": where, "replace": tuple_setitem}
-    for name in names:
-        source = getattr(model, name)
-        function = types.FunctionType(_float32_constants(source.__code__), namespace, name, source.__defaults__)
-        function.__qualname__ = source.__qualname__
-        function.__module__ = source.__module__
-        namespace[name] = njit(**JIT, **INLINE)(function)
-    return types.SimpleNamespace(**{name: namespace[name] for name in names})
-
-
-
 # ---------------------------------------------------------------------------------------------------------
 # The random numbers: a keyed hash of (key, counter, draw), in 32-bit integer arithmetic. numba would
 # widen uint32 arithmetic to 64 bits (half the vector lanes), so the four operations are LLVM's own.
@@ -141,8 +109,9 @@ if numba.config.DISABLE_JIT:  # intrinsics run only in compiled code: plain Pyth
     tuple_setitem = model.replace  # noqa: F811
     to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
 
-compiled = _compile_model()
-""":mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs."""
+compiled = model.rebind({"exp": exp32, "where": where, "replace": tuple_setitem}, F32, njit(**JIT, **INLINE))
+""":mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs. Float
+literals become float32 constants: numba would compute in float64 otherwise, at half the vector width."""
 _step, _initial_state = compiled.step, compiled.initial_state  # module globals, as numba needs them
 
 U32 = np.uint32

@@ -14,7 +14,8 @@ Time is counted in half-hours. A state is a tuple of floats in observation order
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import types
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -293,3 +294,47 @@ V0_VARIABLES: tuple[Variable, ...] = (
 def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:
     """The names of ``variables``, in observation order."""
     return tuple(v.name for v in variables)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Running this module's code on another backend
+FUNCTIONS = (
+    "sigmoid",
+    "gaussian",
+    "heart_attack_risk",
+    "alertness_decay",
+    "crippling_anxiety",
+    "ballmer",
+    "productivity",
+    "score",
+    "wake_alertness",
+    "initial_state",
+    "step",
+)
+"""The functions that make the step, in the order they call each other (callees first)."""
+
+
+def rebind(
+    bindings: dict[str, Any],
+    constant: Callable[[Any], Any] = lambda value: value,
+    wrap: Callable[[Callable[..., Any]], Any] = lambda function: function,
+) -> types.SimpleNamespace:
+    """:data:`FUNCTIONS` with this module's very code objects, run against another backend.
+
+    Args:
+        bindings: replacements for ``exp``, ``where`` and ``replace`` (the backend's operations).
+        constant: applied to every float literal of the code (numba: make it float32).
+        wrap: applied to every function (numba: compile it).
+
+    Returns:
+        The functions by name; each calls the others' rebound versions.
+    """
+    namespace: dict[str, Any] = {**globals(), **bindings}
+    for name in FUNCTIONS:
+        source = globals()[name]
+        code = source.__code__
+        code = code.replace(co_consts=tuple(constant(c) if type(c) is float else c for c in code.co_consts))
+        function = types.FunctionType(code, namespace, name, source.__defaults__)
+        function.__qualname__, function.__module__ = source.__qualname__, source.__module__
+        namespace[name] = wrap(function)
+    return types.SimpleNamespace(**{name: namespace[name] for name in FUNCTIONS})
