@@ -112,7 +112,7 @@ if numba.config.DISABLE_JIT:  # intrinsics run only in compiled code: plain Pyth
 compiled = model.rebind({"exp": exp32, "where": where, "replace": tuple_setitem}, F32, njit(**JIT, **INLINE))
 """:mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs. Float
 literals become float32 constants: numba would compute in float64 otherwise, at half the vector width."""
-_step, _initial_state = compiled.step, compiled.initial_state  # module globals, as numba needs them
+_step, _initial_state, _kept_by_the_step = compiled.step, compiled.initial_state, compiled.kept_by_the_step
 
 U32 = np.uint32
 MIX_1, MIX_2, GOLDEN = U32(0x21F0AAAD), U32(0x735A2D97), U32(0x9E3779B9)
@@ -154,8 +154,7 @@ def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
     """
     u = zeros + (F32(0.0), F32(0.0))
     for j in range(len(u)):
-        kept_by_the_step = model.TIME_SINCE_SLEPT <= j <= model.WORK_DONE
-        u = tuple_setitem(u, j, where(kept_by_the_step, F32(0.0), uniform(key_low, key_high, counter, j)))
+        u = tuple_setitem(u, j, where(_kept_by_the_step(j), F32(0.0), uniform(key_low, key_high, counter, j)))
     return u
 
 

@@ -42,6 +42,11 @@ def replace(state: State, index: int, value: Number) -> State:
     return state[:index] + (value,) + state[index + 1 :]
 
 
+def kept_by_the_step(variable: int) -> bool:
+    """Whether the step keeps ``variable`` itself (time and work): no action, fading or relief touches it."""
+    return TIME_SINCE_SLEPT <= variable <= WORK_DONE
+
+
 def sigmoid(x: Number) -> Number:
     """The logistic function ``1 / (1 + exp(-x))``."""
     return 1.0 / (1.0 + exp(-x))
@@ -152,6 +157,8 @@ def step(
     # Facts 2 and 3 (and any variant's actions): each effect adds a uniform amount in [low, high].
     # No variable goes below its lower bound (exercise cannot push blood pressure under 0).
     for v in range(n):
+        if kept_by_the_step(v):
+            continue
         changed = s[v] + a.effect_low[v] + a.effect_width[v] * u[v]
         s = replace(s, v, where(changed < t.floor[v], t.floor[v], changed))
 
@@ -162,7 +169,8 @@ def step(
         drain += where(offset < a.drowsy, alertness_decay(s[TIME_SINCE_SLEPT] + offset), 0.0)
     s = replace(s, ALERTNESS, s[ALERTNESS] - drain)
     for v in range(n):
-        s = replace(s, v, s[v] * a.rest_fade[v])
+        if not kept_by_the_step(v):
+            s = replace(s, v, s[v] * a.rest_fade[v])
     s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + a.rest)
     s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + a.rest)
 
@@ -174,14 +182,16 @@ def step(
     # Facts 7 and 8: a half-hour of work.
     calm = 0.0
     for v in range(n):
-        calm += t.anxiety_relief[v] * s[v]
+        if not kept_by_the_step(v):
+            calm += t.anxiety_relief[v] * s[v]
     worked = productivity(s[ALERTNESS], s[INTOXICATION], calm)
     s = replace(s, WORK_DONE, s[WORK_DONE] + worked)
 
     # Facts 5 and 6: the half-hour passes.
     s = replace(s, ALERTNESS, s[ALERTNESS] - alertness_decay(s[TIME_SINCE_SLEPT]))
     for v in range(n):
-        s = replace(s, v, s[v] * t.fade[v])
+        if not kept_by_the_step(v):
+            s = replace(s, v, s[v] * t.fade[v])
     s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + 1.0)
     s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + 1.0)
 
@@ -299,6 +309,7 @@ def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:
 # ---------------------------------------------------------------------------------------------------------
 # Running this module's code on another backend
 FUNCTIONS = (
+    "kept_by_the_step",
     "sigmoid",
     "gaussian",
     "heart_attack_risk",

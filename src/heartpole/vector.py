@@ -115,7 +115,9 @@ class HeartPoleVectorEnv(VectorEnv):
             nothing = np.zeros(n, dtype=bool)
             return self._observations(), np.zeros(n, dtype=np.float32), nothing, nothing.copy(), {}
         kernel.step_envs(self._envs, action, self._rng, self.dynamics.packed, self.dynamics.layout)
-        reward, worked, risk, attack, new_score = self._envs[len(self.dynamics.variables) :].copy()
+        # each result a copy of its own: blocks of one row are reused by the allocator, where one block of
+        # all rows was returned to the system and page-faulted back in at every step
+        reward, worked, risk, attack, new_score = (row.copy() for row in self._envs[len(self.dynamics.variables) :])
         attack = attack > 0.5
         self._steps += 1
         ended = self._steps >= self.max_steps
