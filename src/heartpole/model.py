@@ -90,9 +90,7 @@ def ballmer(intoxication: ArrayOrFloat) -> ArrayOrFloat:
     return skill
 
 
-def productivity(
-    alertness: ArrayOrFloat, intoxication: ArrayOrFloat, calm: ArrayOrFloat | None = None
-) -> ArrayOrFloat:
+def productivity(alertness: ArrayOrFloat, intoxication: ArrayOrFloat, calm: ArrayOrFloat | None = None) -> ArrayOrFloat:
     """Fact 7 and fiction 8: work done in one half-hour, ``alertness * (1 - anxiety) * ballmer``.
 
     ``calm`` is anxiety relief (HeartPole-v1's THC; see :attr:`Variable.anxiety_relief`): anxiety sets in
@@ -137,12 +135,7 @@ class Params:
 
 def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
     is_number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    in_range = (
-        is_number
-        and math.isfinite(value)
-        and (low < value if low_open else low <= value)
-        and value <= high
-    )
+    in_range = is_number and math.isfinite(value) and (low < value if low_open else low <= value) and value <= high
     if not in_range:
         bracket = "(" if low_open else "["
         raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")

@@ -59,7 +59,9 @@ def action_probabilities(policy: Policy, obs: np.ndarray, num_actions: int) -> n
     if callable(method):
         probs = np.asarray(method(obs), dtype=np.float64)
         if probs.shape != (size, num_actions):
-            raise ValueError(f"policy {name!r} gave probabilities of shape {probs.shape}, expected {(size, num_actions)}")
+            raise ValueError(
+                f"policy {name!r} gave probabilities of shape {probs.shape}, expected {(size, num_actions)}"
+            )
         if (probs < 0).any() or not np.allclose(probs.sum(axis=1), 1.0, atol=1e-6):
             raise ValueError(f"policy {name!r} gave probabilities that are negative or do not sum to 1")
         return probs

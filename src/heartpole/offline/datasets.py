@@ -36,12 +36,10 @@ import numpy as np
 from heartpole.offline.behaviour import (
     EpsilonGreedy,
     Mixture,
-    check_actions,
-    check_deterministic,
     check_epsilon,
     policy_name,
-    sample,
 )
+from heartpole.offline.trajectories import INFO_KEYS, Trajectories, collect
 from heartpole.policies import Policy, env_dynamics, load_policy, quiet_version_warnings
 
 AUTHOR = "HeartPole contributors"
@@ -148,12 +146,13 @@ def record_dataset(
     target_id = dataset_id or default_dataset_id(name, env_id)
     _check_dataset_id(target_id)
     if not force and _exists(target_id):
-        raise FileExistsError(f"dataset {target_id!r} already exists in {_root()}; pass force=True (--force) to replace it")
+        raise FileExistsError(
+            f"dataset {target_id!r} already exists in {_root()}; pass force=True (--force) to replace it"
+        )
     chunk = min(episodes, MAX_NUM_ENVS if num_envs is None else _count("num_envs", num_envs))
-    buffers: list[Any] = []
+    seeds = [_chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
     started = time.perf_counter()
-    for index, first in enumerate(range(0, episodes, chunk)):
-        buffers += _record_chunk(env_id, behaviour, min(chunk, episodes - first), _chunk_seed(seed, index), progress)
+    buffers = to_buffers(collect(behaviour, episodes, env_id, seeds, progress))
     seconds = time.perf_counter() - started
     low, high = reference_scores(env_id)
     extra = {
@@ -247,60 +246,27 @@ def reference_scores(env_id: str = "HeartPole-v0") -> tuple[float, float]:
 # recording
 
 
-def _record_chunk(
-    env_id: str, behaviour: EpsilonGreedy, size: int, reset_seed: int, progress: Callable[[int], None] | None
-) -> list[Any]:
-    """Run ``size`` episodes side by side and return their ``EpisodeBuffer`` s."""
-    import gymnasium as gym
+def to_buffers(trajectories: Trajectories) -> list[Any]:
+    """One ``minari.data_collector.EpisodeBuffer`` per episode, infos aligned with observations."""
     from minari.data_collector import EpisodeBuffer
 
-    with quiet_version_warnings():
-        env = gym.make_vec(env_id, num_envs=size, vectorization_mode="vector_entry_point")
-    try:
-        steps, num_actions = int(env.unwrapped.max_steps), behaviour.num_actions
-        obs, _ = env.reset(seed=reset_seed)
-        check_deterministic(behaviour.policy, obs)
-        observations = np.empty((steps + 1, size, obs.shape[1]), dtype=np.float32)
-        probabilities = np.empty((steps + 1, size, num_actions), dtype=np.float64)
-        actions = np.empty((steps, size), dtype=np.int64)
-        rewards = np.empty((steps, size), dtype=np.float64)
-        infos = {key: np.zeros((steps + 1, size), dtype=dtype) for key, dtype in _INFO_DTYPES.items()}
-        truncated = np.zeros(size, dtype=bool)
-        observations[0] = obs
-        for t in range(steps):
-            probabilities[t] = behaviour.action_probabilities(obs)
-            actions[t] = check_actions(sample(probabilities[t], behaviour.rng), size, num_actions, behaviour.name)
-            obs, rewards[t], _, truncated, info = env.step(actions[t])
-            observations[t + 1] = obs
-            for key in _INFO_DTYPES:
-                infos[key][t + 1] = info[key]
-            if progress:
-                progress(size)
-        if not np.all(truncated):
-            raise RuntimeError(f"episodes did not end after max_steps={steps} steps")
-        probabilities[steps] = behaviour.action_probabilities(obs)
-    finally:
-        env.close()
-    truncations = np.zeros(steps, dtype=bool)
+    truncations = np.zeros(trajectories.steps, dtype=bool)
     truncations[-1] = True
-    terminations = np.zeros(steps, dtype=bool)
+    terminations = np.zeros(trajectories.steps, dtype=bool)
     return [
         EpisodeBuffer(
-            observations=np.ascontiguousarray(observations[:, i]),
-            actions=np.ascontiguousarray(actions[:, i]),
-            rewards=np.ascontiguousarray(rewards[:, i]),
+            observations=trajectories.observations[i],
+            actions=trajectories.actions[i],
+            rewards=trajectories.rewards[i],
             terminations=terminations,
             truncations=truncations,
             infos={
-                "action_probabilities": np.ascontiguousarray(probabilities[:, i]),
-                **{key: np.ascontiguousarray(value[:, i]) for key, value in infos.items()},
+                "action_probabilities": trajectories.action_probabilities[i],
+                **{key: getattr(trajectories, key)[i] for key in INFO_KEYS},
             },
         )
-        for i in range(size)
+        for i in range(trajectories.episodes)
     ]
-
-
-_INFO_DTYPES = {"heart_attack_risk": np.float32, "productivity": np.float32, "heart_attack": bool, "score": np.float32}
 
 
 def _resolve(policy: PolicyLike, env_id: str, seed: int, index: int) -> Policy:
@@ -327,6 +293,11 @@ def _root() -> Path:
     """Minari's datasets folder, as Minari itself finds it."""
     configured = os.environ.get("MINARI_DATASETS_PATH")
     return Path(configured) if configured is not None else Path.home() / ".minari" / "datasets"
+
+
+def local_root() -> Path:
+    """Minari's local datasets folder: ``MINARI_DATASETS_PATH`` if set, else ``~/.minari/datasets``."""
+    return _root()
 
 
 def _exists(target_id: str) -> bool:
@@ -418,7 +389,45 @@ __all__ = [
     "DatasetSpec",
     "behaviour_name",
     "default_dataset_id",
+    "load_local",
+    "load_trajectories",
+    "local_dataset_ids",
+    "local_root",
     "record_dataset",
     "record_standard",
     "reference_scores",
 ]
+
+
+def local_dataset_ids() -> list[str]:
+    """The ids of the datasets in Minari's local folder (``MINARI_DATASETS_PATH``)."""
+    root = _root()
+    if not root.is_dir():
+        return []
+    found = []
+    for metadata in root.rglob("data/metadata.json"):
+        relative = metadata.parent.parent.relative_to(root)
+        if not any(part.startswith(".") for part in relative.parts):
+            found.append(relative.as_posix())
+    return sorted(found)
+
+
+def load_local(target_id: str) -> Any:
+    """``minari.load_dataset(target_id)`` for a dataset in the local folder; never downloads.
+
+    Raises:
+        ValueError: for an id that is not in the local folder, listing the ones that are.
+    """
+    import minari
+
+    if not (_root() / target_id / "data" / "metadata.json").is_file():
+        known = local_dataset_ids()
+        listing = ", ".join(known) if known else "none; record one with 'heartpole dataset'"
+        raise ValueError(f"unknown dataset id {target_id!r} in {_root()}; local datasets: {listing}")
+    with quiet_version_warnings():
+        return minari.load_dataset(target_id)
+
+
+def load_trajectories(target_id: str) -> Trajectories:
+    """The episodes of the local dataset ``target_id`` as :class:`Trajectories`."""
+    return Trajectories.from_dataset(load_local(target_id))
