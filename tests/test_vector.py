@@ -202,8 +202,11 @@ print((resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before) / 40)
 def test_steps_reuse_freed_memory_instead_of_page_faulting_it_back() -> None:
     # A fresh process: pytest's own process has long raised glibc's thresholds by freeing large arrays.
     # Without keep_step_memory a step at 16,384 envs page-faults about 140 times.
-    faults = float(subprocess.run([sys.executable, "-c", FAULTS_PER_STEP, "with"], check=True,
-                                  capture_output=True, text=True).stdout)
+    faults = float(
+        subprocess.run(
+            [sys.executable, "-c", FAULTS_PER_STEP, "with"], check=True, capture_output=True, text=True
+        ).stdout
+    )
     assert faults < 20, f"{faults} page faults per step"
 
 
@@ -227,8 +230,9 @@ def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> N
 def test_same_step_autoreset_forgets_the_ended_episode_for_rendering(monkeypatch) -> None:
     drawn = []
     monkeypatch.setattr(heartpole.vector.rendering, "draw_frame", lambda state, **kw: drawn.append(kw))
-    env = heartpole.HeartPoleVectorEnv(1, max_steps=2, render_mode="rgb_array",
-                                       autoreset_mode=AutoresetMode.SAME_STEP, heart_attack_proclivity=1.0)
+    env = heartpole.HeartPoleVectorEnv(
+        1, max_steps=2, render_mode="rgb_array", autoreset_mode=AutoresetMode.SAME_STEP, heart_attack_proclivity=1.0
+    )
     env.reset(seed=0)
     env.step(np.array([2]))
     env.render()

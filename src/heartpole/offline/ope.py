@@ -24,6 +24,7 @@ WPDIS and FQE with none.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -116,10 +117,18 @@ class LinearFQE:
     Args:
         gamma: the discount.
         ridge: a small L2 penalty that keeps the linear system well posed.
+        featurize: observations ``(n, obs_dim)`` -> features ``(n, d)`` whose first column is the constant 1
+            (default: :func:`features`).
     """
 
-    def __init__(self, gamma: float, ridge: float = DEFAULT_RIDGE) -> None:
+    def __init__(
+        self,
+        gamma: float,
+        ridge: float = DEFAULT_RIDGE,
+        featurize: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
         self.gamma, self.ridge = float(gamma), float(ridge)
+        self.featurize = featurize or features
         self.theta: np.ndarray | None = None
         self.mean: np.ndarray | None = None
         self.scale: np.ndarray | None = None
@@ -128,7 +137,7 @@ class LinearFQE:
         """Solve for ``theta`` from the episodes, the target's probabilities and the rewards to evaluate."""
         n, steps = trajectories.actions.shape
         k = trajectories.num_actions
-        raw = features(trajectories.observations.reshape(-1, trajectories.observations.shape[2]))
+        raw = self.featurize(trajectories.observations.reshape(-1, trajectories.observations.shape[2]))
         self.mean, self.scale = raw.mean(axis=0), raw.std(axis=0)
         self.mean[0], self.scale[0] = 0.0, 1.0  # the constant feature stays 1
         self.scale[self.scale == 0] = 1.0
@@ -152,7 +161,7 @@ class LinearFQE:
         if self.theta is None or self.mean is None or self.scale is None:
             raise RuntimeError("call fit() first")
         shape = observations.shape[:-1]
-        z = (features(observations.reshape(-1, observations.shape[-1])) - self.mean) / self.scale
+        z = (self.featurize(observations.reshape(-1, observations.shape[-1])) - self.mean) / self.scale
         return (z @ self.theta.T).reshape(*shape, -1)
 
 
@@ -198,6 +207,7 @@ def estimate_all(
     *,
     expected_rewards: bool = False,
     ridge: float = DEFAULT_RIDGE,
+    featurize: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> list[Estimate]:
     """PDIS, WPDIS, FQE and DR estimates of ``policy``'s discounted value from ``trajectories``.
 
@@ -208,13 +218,14 @@ def estimate_all(
         expected_rewards: use the rewards with each heart-attack coin replaced by its probability
             (``Trajectories.expected_rewards``): same expectation, less noise.
         ridge: FQE's L2 penalty.
+        featurize: FQE's features (default: :func:`features`).
     """
     if not 0.0 < float(gamma) <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
     target = target_probabilities(policy, trajectories)
     weights = importance_weights(target, trajectories)
     rewards = trajectories.expected_rewards() if expected_rewards else trajectories.rewards
-    fqe = LinearFQE(gamma, ridge).fit(trajectories, target, rewards)
+    fqe = LinearFQE(gamma, ridge, featurize).fit(trajectories, target, rewards)
     q = fqe.q_values(trajectories.observations)
     v = (q * target).sum(axis=2)
     q_taken = np.take_along_axis(q[:, :-1], trajectories.actions[..., None], axis=2)[..., 0]
