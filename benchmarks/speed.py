@@ -106,9 +106,7 @@ def report(name: str, rate: float, anchor_name: str, anchor: float, goal: float 
 def section_single(repeats: int) -> None:
     print("single env, unwrapped, random actions")
     steps = 100_000
-    cartpole, heart, made_cartpole, made_heart = best_of(
-        repeats, *(fresh(env, 0, steps) for env in SINGLE_ENVS)
-    )
+    cartpole, heart, made_cartpole, made_heart = best_of(repeats, *(fresh(env, 0, steps) for env in SINGLE_ENVS))
     report("CartPole-v1 unwrapped (anchor)", cartpole, "CartPole", cartpole)
     report("HeartPole-v0 unwrapped", heart, "CartPole", cartpole, goal=3.0)
     report("CartPole-v1 via gym.make", made_cartpole, "CartPole", cartpole)
@@ -162,8 +160,10 @@ def main() -> None:
         return
     repeats = 2 if args.quick else 5
     sizes = [1, 64, 1024, 16384] if args.quick else [1, 16, 256, 1024, 4096, 16384, 65536]
-    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
-          f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {platform.python_implementation()} "
+        f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}"
+    )
     sections = {
         "single": lambda: section_single(repeats),
         "vector": lambda: section_vector(repeats),

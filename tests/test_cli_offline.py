@@ -75,3 +75,24 @@ def test_existing_dataset_without_force(capsys, minari_folder):
     assert "already exists" in one_error_line(capsys, "dataset")
     assert files(minari_folder) == before
     assert main(["dataset", "--policy", "expert", "--epsilon", "0.1", "--episodes", "3", "--force"]) == 0
+
+
+@pytest.mark.slow
+def test_sigterm_while_recording_leaves_nothing(minari_folder):
+    """A recording killed with SIGTERM (while it writes) removes its temporary folder."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    env = {**os.environ, "MINARI_DATASETS_PATH": str(minari_folder)}
+    argv = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--episodes", "2000"]
+    process = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not list(minari_folder.iterdir()):
+        time.sleep(0.01)  # the temporary folder appears when the dataset is being written
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert [p for p in minari_folder.rglob("*") if p.is_file()] == []
