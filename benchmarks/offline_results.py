@@ -1,6 +1,6 @@
 """The results table of docs/offline.md: standard datasets, OPE errors against the truth, offline learners.
 
-Run (about 5-10 minutes on a busy 2-core machine; datasets go to a temporary Minari folder unless
+Run (about 15 minutes on a busy 2-core machine; datasets go to a temporary Minari folder unless
 MINARI_DATASETS_PATH is set)::
 
     python benchmarks/offline_results.py                 # rewrites the results section of docs/offline.md
