@@ -151,3 +151,19 @@ def test_a_thousand_episodes_in_under_a_minute():
     seconds = time.perf_counter() - started
     assert dataset.total_steps == 1_000_000
     assert seconds < 60, f"recording 1,000 x 1,000 steps took {seconds:.1f} s"
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")  # Minari's notes on metadata this test leaves out
+def test_a_dataset_without_propensities_is_refused():
+    from minari.data_collector import EpisodeBuffer
+
+    buffer = EpisodeBuffer(
+        observations=np.zeros((3, 6), dtype=np.float32),
+        actions=np.zeros(2, dtype=np.int64),
+        rewards=np.zeros(2),
+        terminations=np.zeros(2, dtype=bool),
+        truncations=np.array([False, True]),
+    )
+    minari.create_dataset_from_buffers("other/plain-v0", [buffer], env="HeartPole-v0", algorithm_name="x")
+    with pytest.raises(ValueError, match="lacks the infos"):
+        load_trajectories("other/plain-v0")
