@@ -167,3 +167,10 @@ def test_a_dataset_without_propensities_is_refused():
     minari.create_dataset_from_buffers("other/plain-v0", [buffer], env="HeartPole-v0", algorithm_name="x")
     with pytest.raises(ValueError, match="lacks the infos"):
         load_trajectories("other/plain-v0")
+
+
+def test_chunks_are_written_one_after_another():
+    dataset = record_dataset("expert", 0.3, episodes=7, num_envs=3, seed=4)
+    assert dataset.total_episodes == 7 and dataset.total_steps == 7000
+    data = load_trajectories(dataset.spec.dataset_id)
+    assert len({tuple(obs) for obs in data.observations[:, 0]}) == 7  # every episode its own waking

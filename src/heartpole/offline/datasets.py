@@ -39,14 +39,16 @@ from heartpole.offline.behaviour import (
     check_epsilon,
     policy_name,
 )
-from heartpole.offline.trajectories import INFO_KEYS, Trajectories, collect
+from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
 from heartpole.policies import Policy, env_dynamics, load_policy, quiet_version_warnings
 
 AUTHOR = "HeartPole contributors"
 AUTHOR_EMAIL = "https://pypi.org/project/heartpole/"
 CODE_PERMALINK = "https://pypi.org/project/heartpole/"
 DEFAULT_EPISODES = 1000
-MAX_NUM_ENVS = 10_000
+RECORD_NUM_ENVS = 1000
+"""Episodes recorded side by side by default; each chunk is written before the next is run, so memory stays
+near 100 MB (about 100 bytes a step) whatever the number of episodes."""
 REFERENCE_EPISODES = 1000
 _ENV_STREAM, _POLICY_STREAM, _BEHAVIOUR_STREAM = 0, 1, 2
 
@@ -123,7 +125,7 @@ def record_dataset(
         dataset_id: the Minari id (default: :func:`default_dataset_id` of the behaviour's name and ``env_id``).
         force: replace an existing dataset of that id.
         description: the dataset's description (default: one written from the arguments).
-        num_envs: episodes run side by side (default: all of them, up to 10,000).
+        num_envs: episodes run side by side and written together (default: up to 1,000).
         progress: a callable given the number of env steps done since its last call.
 
     Returns:
@@ -149,11 +151,8 @@ def record_dataset(
         raise FileExistsError(
             f"dataset {target_id!r} already exists in {_root()}; pass force=True (--force) to replace it"
         )
-    chunk = min(episodes, MAX_NUM_ENVS if num_envs is None else _count("num_envs", num_envs))
+    chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else _count("num_envs", num_envs))
     seeds = [_chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
-    started = time.perf_counter()
-    buffers = to_buffers(collect(behaviour, episodes, env_id, seeds, progress))
-    seconds = time.perf_counter() - started
     low, high = reference_scores(env_id)
     extra = {
         "behaviour_policy": policy_name(base),
@@ -167,7 +166,6 @@ def record_dataset(
         "infos": "action_probabilities (behaviour propensities), heart_attack_risk, productivity, heart_attack, score",
         "reference_scores": "ref_min_score: random's expected return; ref_max_score: the expert's "
         f"({REFERENCE_EPISODES} episodes, expected-risk estimate)",
-        "recording_seconds": round(seconds, 3),
         "heartpole_version": _version(),
     }
     text = description or (
@@ -175,26 +173,33 @@ def record_dataset(
         "uniformly random actions, recorded by heartpole on its native vector env. Infos hold the behaviour's "
         "action probabilities per observation (propensities) and the env's heart_attack_risk and productivity."
     )
+    options = {
+        "env": env_id,
+        "eval_env": env_id,
+        "algorithm_name": f"heartpole behaviour: {name}",
+        "author": AUTHOR,
+        "author_email": AUTHOR_EMAIL,
+        "code_permalink": CODE_PERMALINK,
+        "ref_min_score": low,
+        "ref_max_score": high,
+        "num_episodes_average_score": REFERENCE_EPISODES,
+        "description": text,
+        "requirements": [f"heartpole>={_version()}"],
+    }
+
+    def create() -> None:
+        started = time.perf_counter()
+        dataset = None
+        for part in iter_collect(behaviour, episodes, env_id, seeds, progress):
+            if dataset is None:
+                dataset = minari.create_dataset_from_buffers(target_id, to_buffers(part), **options)
+            else:
+                dataset.update_dataset_from_buffer(to_buffers(part))
+        assert dataset is not None
+        dataset.storage.update_metadata({**extra, "recording_seconds": round(time.perf_counter() - started, 3)})
+
     with quiet_version_warnings():
-        _write_atomically(
-            target_id,
-            force,
-            lambda: minari.create_dataset_from_buffers(
-                dataset_id=target_id,
-                buffer=buffers,
-                env=env_id,
-                eval_env=env_id,
-                algorithm_name=f"heartpole behaviour: {name}",
-                author=AUTHOR,
-                author_email=AUTHOR_EMAIL,
-                code_permalink=CODE_PERMALINK,
-                ref_min_score=low,
-                ref_max_score=high,
-                num_episodes_average_score=REFERENCE_EPISODES,
-                description=text,
-                requirements=[f"heartpole>={_version()}"],
-            ).storage.update_metadata(extra),
-        )
+        _write_atomically(target_id, force, create)
         return minari.load_dataset(target_id)
 
 

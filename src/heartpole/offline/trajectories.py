@@ -7,7 +7,7 @@ reads one back. The off-policy estimators (:mod:`heartpole.offline.ope`) and lea
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -129,12 +129,21 @@ def collect(
     Raises:
         ValueError: if the behaviour's policy returns invalid actions or acts at random without saying how.
     """
+    return Trajectories.concatenate(list(iter_collect(behaviour, episodes, env_id, seeds, progress, env_kwargs)))
+
+
+def iter_collect(
+    behaviour: EpsilonGreedy,
+    episodes: int,
+    env_id: str = "HeartPole-v0",
+    seeds: Sequence[int] = (0,),
+    progress: Callable[[int], None] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> Iterator[Trajectories]:
+    """:func:`collect` one chunk at a time (``ceil(episodes / len(seeds))`` episodes each), to bound memory."""
     chunk = -(-episodes // len(seeds))
-    parts = [
-        _collect_chunk(behaviour, min(chunk, episodes - first), env_id, seed, progress, env_kwargs or {})
-        for first, seed in zip(range(0, episodes, chunk), seeds)
-    ]
-    return Trajectories.concatenate(parts)
+    for first, seed in zip(range(0, episodes, chunk), seeds):
+        yield _collect_chunk(behaviour, min(chunk, episodes - first), env_id, seed, progress, env_kwargs or {})
 
 
 def _collect_chunk(
