@@ -114,6 +114,7 @@ def test_a_failure_while_writing_leaves_nothing(minari_folder, monkeypatch):
         ({"policy": lambda obs: np.zeros(len(obs))}, ValueError, "float64"),
         ({"policy": RandomPolicy().__call__}, ValueError, "acts at random"),
         ({"policy": "expert", "dataset_id": "no version"}, ValueError, "name-vN"),
+        ({"policy": "expert", "dataset_id": "x/y-v0"}, ValueError, "name-vN"),
     ],
 )
 def test_bad_input_writes_nothing(minari_folder, kwargs, error, message):

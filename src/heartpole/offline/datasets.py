@@ -363,8 +363,16 @@ def _minari_root(path: Path) -> Iterator[None]:
 
 
 def _check_dataset_id(target_id: str) -> None:
-    if not re.fullmatch(r"(?:[A-Za-z0-9_.-]+/)*[A-Za-z0-9_.-]+-v(?:0|[1-9][0-9]*)", target_id):
-        raise ValueError(f"dataset id must read [namespace/]name-vN (letters, digits, _ . -), got {target_id!r}")
+    """Minari's own id grammar, checked before anything runs."""
+    from minari.dataset.minari_dataset import parse_dataset_id
+
+    try:
+        parse_dataset_id(target_id)
+    except ValueError:
+        raise ValueError(
+            f"dataset id must read [namespace/]name-vN as Minari accepts it (e.g. heartpole/v0/mine-v0), "
+            f"got {target_id!r}"
+        ) from None
 
 
 def _slug(text: str) -> str:
