@@ -23,6 +23,15 @@ POLICY_HELP = (
     "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
     "'heartpole train'"
 )
+DATASET_DESCRIPTION = """\
+Record whole episodes of a behaviour policy, which takes a uniformly random action with probability
+EPSILON and its own otherwise, as a Minari dataset. Infos hold the behaviour's action probabilities at
+every observation (propensities, for importance sampling), heart_attack_risk and productivity. The id
+reads heartpole/v0/<policy>-eps<percent>-v0.
+
+Datasets live in Minari's folder: $MINARI_DATASETS_PATH if set, else ~/.minari/datasets. Load one with
+minari.load_dataset(ID); dataset.recover_environment() makes its env. Nothing is left half written: the
+dataset is written under a temporary name and moved into place when complete."""
 FOLDER_NOTE = (
     "Datasets live in Minari's folder: $MINARI_DATASETS_PATH if set, else ~/.minari/datasets. "
     "Load one with minari.load_dataset(ID); dataset.recover_environment() makes its env."
@@ -39,11 +48,7 @@ def _register_dataset(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "dataset",
         help="record a Minari dataset of a policy's episodes (offline RL, off-policy evaluation)",
-        description="Record whole episodes of a behaviour policy, mixed with EPSILON uniformly random actions, "
-        "as a Minari dataset with the behaviour's action probabilities (propensities), heart_attack_risk and "
-        "productivity in the infos. The id reads heartpole/v0/<policy>-eps<percent>-v0. "
-        + FOLDER_NOTE
-        + " Nothing is left half written: the dataset is written under a temporary name and moved into place.",
+        description=DATASET_DESCRIPTION,
         epilog="examples:\n"
         "  heartpole dataset --policy reference --epsilon 0.2       # heartpole/v0/reference-eps20-v0\n"
         "  heartpole dataset --policy expert --epsilon 0.1 --episodes 200 --seed 1\n"
