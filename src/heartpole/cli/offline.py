@@ -75,7 +75,7 @@ def _register_ope(subparsers: Any) -> None:
         description="Estimate a target policy's discounted value from a dataset recorded by 'heartpole dataset' "
         "with per-decision importance sampling (PDIS), weighted PDIS, fitted Q evaluation (linear FQE) and "
         "doubly robust (DR), and print each estimate's error against the true value, measured by running the "
-        "policy (expected-risk estimate, 95%% interval). " + FOLDER_NOTE,
+        "policy (expected-risk estimate, 95% interval). " + FOLDER_NOTE,
         epilog="example: heartpole ope --dataset heartpole/v0/reference-eps20-v0 --policy expert --gamma 0.95",
     )
     parser.add_argument("--dataset", required=True, metavar="ID", help="a local dataset id")
