@@ -44,8 +44,16 @@ def run_steps(env_id: str, steps: int) -> None:
 
 def instructions(env_id: str, steps: int) -> int:
     """Instructions executed by a whole Python process that steps ``env_id`` ``steps`` times."""
-    command = ["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
-               sys.executable, __file__, "--run", env_id, str(steps)]
+    command = [
+        "valgrind",
+        "--tool=callgrind",
+        "--callgrind-out-file=/dev/null",
+        sys.executable,
+        __file__,
+        "--run",
+        env_id,
+        str(steps),
+    ]
     fixed_hashes = {**os.environ, "PYTHONHASHSEED": "0"}  # string hashes decide dict probing, hence counts
     output = subprocess.run(command, check=True, capture_output=True, text=True, env=fixed_hashes).stderr
     match = re.search(r"Collected\s*:\s*(\d+)", output)

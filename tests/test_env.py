@@ -161,8 +161,21 @@ def test_copies_mid_episode_continue_identically(clone) -> None:
     assert trajectory(twin, rest) == trajectory(env, rest)
 
 
-INVALID_ACTIONS = [4, -1, 1.0, 2.5, "1", None, [1], np.array([1]), np.array([[0]]), np.float32(1), True,
-                   np.array(1.0), np.bool_(True)]
+INVALID_ACTIONS = [
+    4,
+    -1,
+    1.0,
+    2.5,
+    "1",
+    None,
+    [1],
+    np.array([1]),
+    np.array([[0]]),
+    np.float32(1),
+    True,
+    np.array(1.0),
+    np.bool_(True),
+]
 
 
 @pytest.mark.parametrize("action", INVALID_ACTIONS, ids=repr)

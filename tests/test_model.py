@@ -40,13 +40,22 @@ def test_sigmoid_is_a_probability_and_symmetric(x: float) -> None:
 @given(st.lists(finite, min_size=1, max_size=20))
 def test_every_formula_gives_the_same_for_floats_and_arrays(values: list[float]) -> None:
     array = np.array(values)
-    for formula in (model.sigmoid, model.heart_attack_risk, model.alertness_decay, model.crippling_anxiety,
-                    model.ballmer):
+    for formula in (
+        model.sigmoid,
+        model.heart_attack_risk,
+        model.alertness_decay,
+        model.crippling_anxiety,
+        model.ballmer,
+    ):
         vectorized = formula(array)
         assert vectorized.shape == array.shape
         np.testing.assert_allclose(vectorized, [formula(v) for v in values], rtol=1e-12, atol=1e-300)
-    np.testing.assert_allclose(model.productivity(array, array[::-1]),
-                               [model.productivity(a, b) for a, b in zip(values, values[::-1])], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        model.productivity(array, array[::-1]),
+        [model.productivity(a, b) for a, b in zip(values, values[::-1])],
+        rtol=1e-12,
+        atol=1e-12,
+    )
 
 
 @given(st.floats(min_value=0, max_value=50), st.floats(min_value=0, max_value=50))

@@ -94,8 +94,16 @@ def test_v1_is_registered_with_v0s_state_and_actions_first() -> None:
     env = gym.make("HeartPole-v1")
     assert isinstance(env.unwrapped, heartpole.HeartPoleV1) and isinstance(env.unwrapped, heartpole.HeartPole)
     names = [a.name for a in env.unwrapped.actions]
-    assert names == ["do_nothing", "drink_coffee", "drink_beer", "sleep",
-                     "drink_tea", "take_nap", "exercise", "smoke_cannabis"]
+    assert names == [
+        "do_nothing",
+        "drink_coffee",
+        "drink_beer",
+        "sleep",
+        "drink_tea",
+        "take_nap",
+        "exercise",
+        "smoke_cannabis",
+    ]
     assert env.unwrapped.actions[:4] == heartpole.V0_ACTIONS
     assert env.action_space == gym.spaces.Discrete(8)
     space = env.observation_space
@@ -293,13 +301,23 @@ WALK = Action(
 
 
 def test_variant_round_trip_define_make_vector_make_and_evaluate(variants) -> None:
-    spec = variants("WalkPole-v0", actions=[*heartpole.V0_ACTIONS, WALK], max_steps=200,
-                    heart_attack_proclivity=0.3, decay_rate=0.95, sleep_half_hours=14)
+    spec = variants(
+        "WalkPole-v0",
+        actions=[*heartpole.V0_ACTIONS, WALK],
+        max_steps=200,
+        heart_attack_proclivity=0.3,
+        decay_rate=0.95,
+        sleep_half_hours=14,
+    )
     assert spec.id == "WalkPole-v0" and spec.vector_entry_point is not None
     env = gym.make("WalkPole-v0")
     params = env.unwrapped.dynamics.params
     assert (params.max_steps, params.heart_attack_proclivity, params.decay_rate, params.sleep_half_hours) == (
-        200, 0.3, 0.95, 14)
+        200,
+        0.3,
+        0.95,
+        14,
+    )
     assert env.action_space == gym.spaces.Discrete(5) and env.observation_space.shape == (6,)
     assert gym.make("WalkPole-v0", max_steps=50).unwrapped.max_steps == 50  # defaults, not locks
     assert pickle.loads(pickle.dumps(env.unwrapped)).actions == env.unwrapped.actions
@@ -336,8 +354,11 @@ def test_variant_with_its_own_variable_defined_as_plain_data(variants) -> None:
     """A variant read from a config file: mappings instead of objects, and a variable of its own."""
     variants(
         "config/StressPole-v2",
-        actions=[{"name": "do_nothing"}, {"name": "sleep", "sleeps": True},
-                 {"name": "meeting", "effects": {"stress": [0.5, 1.0], "alertness": [0.0, 0.2]}, "fact": "..."}],
+        actions=[
+            {"name": "do_nothing"},
+            {"name": "sleep", "sleeps": True},
+            {"name": "meeting", "effects": {"stress": [0.5, 1.0], "alertness": [0.0, 0.2]}, "fact": "..."},
+        ],
         variables=[*heartpole.V0_VARIABLES, {"name": "stress", "low": 0.0, "decay": 0.8, "anxiety_relief": -1.0}],
     )
     vec = gym.make_vec("config/StressPole-v2", num_envs=4000, vectorization_mode="vector_entry_point")
@@ -358,8 +379,9 @@ def test_variant_built_on_v1_and_replaced(variants) -> None:
     variants("DecafPole-v0", actions=[*heartpole.V1_ACTIONS, decaf], variables=heartpole.V1_VARIABLES)
     assert gym.make("DecafPole-v0").action_space == gym.spaces.Discrete(9)
     with pytest.raises(ValueError, match="already registered.*replace=True"):
-        heartpole.register_variant("DecafPole-v0", actions=[*heartpole.V1_ACTIONS, decaf],
-                                   variables=heartpole.V1_VARIABLES)
+        heartpole.register_variant(
+            "DecafPole-v0", actions=[*heartpole.V1_ACTIONS, decaf], variables=heartpole.V1_VARIABLES
+        )
     variants("DecafPole-v0", replace=True, max_steps=10)
     env = gym.make("DecafPole-v0")
     assert env.action_space == gym.spaces.Discrete(4) and env.unwrapped.max_steps == 10
@@ -372,9 +394,16 @@ def test_variant_built_on_v1_and_replaced(variants) -> None:
 # bad definitions fail when defined, with a message naming what is wrong and what is accepted
 
 BAD_IDS = [
-    ("MyPole", "Name-vN"), ("MyPole-v", "Name-vN"), ("MyPole-v01", "Name-vN"), ("My Pole-v0", "Name-vN"),
-    ("-v0", "Name-vN"), ("1Pole-v0", "Name-vN"), (7, "Name-vN"), ("HeartPole-v0", "built into"),
-    ("HeartPole-v1", "built into"), ("CartPole-v1", "already registered"),
+    ("MyPole", "Name-vN"),
+    ("MyPole-v", "Name-vN"),
+    ("MyPole-v01", "Name-vN"),
+    ("My Pole-v0", "Name-vN"),
+    ("-v0", "Name-vN"),
+    ("1Pole-v0", "Name-vN"),
+    (7, "Name-vN"),
+    ("HeartPole-v0", "built into"),
+    ("HeartPole-v1", "built into"),
+    ("CartPole-v1", "already registered"),
 ]
 
 TEA = {"name": "drink_tea", "effects": {"alertness": (0.0, 0.5)}}
@@ -422,8 +451,13 @@ BAD_DEFINITIONS = [
     ({"variables": (*heartpole.V0_VARIABLES, {"low": 0.0})}, "variable #6 is missing its 'name'"),
     ({"variables": (*heartpole.V0_VARIABLES, "stress")}, "variable #6 must be a heartpole.Variable"),
     ({"variables": STRESS}, "variables must be a list"),
-    ({"actions": [{"name": "x", "effects": {"stress": (0, 1)}}], "variables": (*heartpole.V0_VARIABLES,
-      Variable("stress", 0.0, 1.0))}, "does not cap them"),
+    (
+        {
+            "actions": [{"name": "x", "effects": {"stress": (0, 1)}}],
+            "variables": (*heartpole.V0_VARIABLES, Variable("stress", 0.0, 1.0)),
+        },
+        "does not cap them",
+    ),
     # parameters
     ({"heart_attack_proclivity": 1.5}, r"heart_attack_proclivity must be a finite number in \[0.0, 1.0\]"),
     ({"heart_attack_proclivity": -0.1}, "heart_attack_proclivity"),
@@ -450,8 +484,9 @@ def test_bad_ids_are_refused(env_id, message: str) -> None:
     assert dict(gym.registry) == before
 
 
-@pytest.mark.parametrize("definition, message", BAD_DEFINITIONS, ids=[f"{i}-{m[:24]}" for i, (_, m) in
-                                                                      enumerate(BAD_DEFINITIONS)])
+@pytest.mark.parametrize(
+    "definition, message", BAD_DEFINITIONS, ids=[f"{i}-{m[:24]}" for i, (_, m) in enumerate(BAD_DEFINITIONS)]
+)
 def test_bad_definitions_fail_when_defined(definition: dict, message: str) -> None:
     with pytest.raises(ValueError, match=message) as raised:
         heartpole.register_variant("BadPole-v0", **definition)

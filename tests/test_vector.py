@@ -154,8 +154,9 @@ def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> N
 def test_same_step_autoreset_forgets_the_ended_episode_for_rendering(monkeypatch) -> None:
     drawn = []
     monkeypatch.setattr(heartpole.vector.rendering, "draw_frame", lambda state, **kw: drawn.append(kw))
-    env = heartpole.HeartPoleVectorEnv(1, max_steps=2, render_mode="rgb_array",
-                                       autoreset_mode=AutoresetMode.SAME_STEP, heart_attack_proclivity=1.0)
+    env = heartpole.HeartPoleVectorEnv(
+        1, max_steps=2, render_mode="rgb_array", autoreset_mode=AutoresetMode.SAME_STEP, heart_attack_proclivity=1.0
+    )
     env.reset(seed=0)
     env.step(np.array([2]))
     env.render()

@@ -238,12 +238,7 @@ class Params:
 
 def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
     is_number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    in_range = (
-        is_number
-        and math.isfinite(value)
-        and (low < value if low_open else low <= value)
-        and value <= high
-    )
+    in_range = is_number and math.isfinite(value) and (low < value if low_open else low <= value) and value <= high
     if not in_range:
         bracket = "(" if low_open else "["
         raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")

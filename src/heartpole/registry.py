@@ -275,8 +275,7 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
     unknown = sorted(set(params) - set(PARAMETERS))
     if unknown:
         raise ValueError(
-            f"unknown parameter(s) {unknown}; a variant takes actions, variables and the parameters "
-            f"{list(PARAMETERS)}"
+            f"unknown parameter(s) {unknown}; a variant takes actions, variables and the parameters {list(PARAMETERS)}"
         )
     return dict(params)
 

@@ -245,6 +245,7 @@ def format_run(run: dict[str, Any]) -> str:
 def format_summary(summary: dict[str, Any]) -> str:
     """Every seed's row, then the interquartile mean across seeds with its 95% bootstrap interval."""
     from heartpole.training import aggregate_figures
+
     headers = ["seed", "heart attacks/ep", "score", "return", "return 95% CI", "expected-risk return", "s", "solved"]
     rows = [
         [

@@ -1,0 +1,252 @@
+"""``heartpole dataset`` and ``heartpole ope``: Minari datasets and off-policy evaluation against the truth.
+
+The work is done by :mod:`heartpole.offline`; these commands parse, call it and print.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import signal
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
+
+from heartpole.cli.common import CommandError, format_table, positive_int, raise_arg, seed_int
+from heartpole.progress import progress
+
+ORDER = 40
+T = TypeVar("T")
+
+POLICY_HELP = (
+    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
+    "'heartpole train'"
+)
+DATASET_DESCRIPTION = """\
+Record whole episodes of a behaviour policy, which takes a uniformly random action with probability
+EPSILON and its own otherwise, as a Minari dataset. Infos hold the behaviour's action probabilities at
+every observation (propensities, for importance sampling), heart_attack_risk and productivity. The id
+reads heartpole/v0/<policy>-eps<percent>-v0.
+
+Datasets live in Minari's folder: $MINARI_DATASETS_PATH if set, else ~/.minari/datasets. Load one with
+minari.load_dataset(ID); dataset.recover_environment() makes its env. Nothing is left half written: the
+dataset is written under a temporary name and moved into place when complete."""
+FOLDER_NOTE = (
+    "Datasets live in Minari's folder: $MINARI_DATASETS_PATH if set, else ~/.minari/datasets. "
+    "Load one with minari.load_dataset(ID); dataset.recover_environment() makes its env."
+)
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``dataset`` and ``ope`` subcommands."""
+    _register_dataset(subparsers)
+    _register_ope(subparsers)
+
+
+def _register_dataset(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "dataset",
+        help="record a Minari dataset of a policy's episodes (offline RL, off-policy evaluation)",
+        description=DATASET_DESCRIPTION,
+        epilog="examples:\n"
+        "  heartpole dataset --policy reference --epsilon 0.2       # heartpole/v0/reference-eps20-v0\n"
+        "  heartpole dataset --policy expert --epsilon 0.1 --episodes 200 --seed 1\n"
+        "  heartpole dataset --standard --force                      # the standard collection",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--policy", metavar="P", help=POLICY_HELP)
+    parser.add_argument("--standard", action="store_true", help="record the standard collection instead")
+    parser.add_argument(
+        "--epsilon", type=_epsilon, default=0.0, metavar="E", help="share of random actions in [0, 1] (default 0)"
+    )
+    parser.add_argument("--episodes", type=positive_int, default=1000, metavar="N", help="episodes (default 1000)")
+    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
+    parser.add_argument("--id", dest="dataset_id", metavar="ID", help="dataset id (default: from policy and epsilon)")
+    parser.add_argument("--force", action="store_true", help="replace an existing dataset of the same id")
+    parser.set_defaults(handler=run_dataset)
+
+
+def _register_ope(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "ope",
+        help="off-policy evaluation of a policy from a dataset, scored against its true value",
+        description="Estimate a target policy's discounted value from a dataset recorded by 'heartpole dataset' "
+        "with per-decision importance sampling (PDIS), weighted PDIS, fitted Q evaluation (linear FQE) and "
+        "doubly robust (DR), and print each estimate's error against the true value, measured by running the "
+        "policy (expected-risk estimate, 95% interval). " + FOLDER_NOTE,
+        epilog="example: heartpole ope --dataset heartpole/v0/reference-eps20-v0 --policy expert --gamma 0.95",
+    )
+    parser.add_argument("--dataset", required=True, metavar="ID", help="a local dataset id")
+    parser.add_argument("--policy", required=True, metavar="P", help="the target policy: " + POLICY_HELP)
+    parser.add_argument("--gamma", type=_gamma, default=0.95, metavar="G", help="discount in (0, 1] (default 0.95)")
+    parser.add_argument(
+        "--truth-episodes", type=positive_int, default=2000, metavar="N", help="episodes for the truth (default 2000)"
+    )
+    parser.add_argument(
+        "--expected-risk",
+        action="store_true",
+        help="estimate from rewards with each heart-attack coin replaced by its probability (less noise)",
+    )
+    parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed of the truth's episodes")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.set_defaults(handler=run_ope)
+
+
+# ------------------------------------------------------------------------------------------------------
+# handlers
+
+
+def run_dataset(args: argparse.Namespace) -> int:
+    """``heartpole dataset``: record one dataset, or the standard collection."""
+    with _sigterm_as_interrupt():
+        return _record(args)
+
+
+def _record(args: argparse.Namespace) -> int:
+    datasets = _offline("datasets")
+    if args.standard == bool(args.policy):
+        raise CommandError("give either --policy P or --standard")
+    if args.standard and args.dataset_id:
+        raise CommandError("--id names one dataset; it cannot be used with --standard")
+    max_steps = _library(lambda: _max_steps(args.env))
+    if args.standard:
+        total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
+        with progress(total, "recording the standard datasets") as bar:
+            ids = _library(
+                lambda: datasets.record_standard(
+                    args.episodes, args.env, args.seed, force=args.force, progress=bar.update
+                )
+            )
+        print(format_table(["dataset", "episodes"], [[i, args.episodes] for i in ids]))
+        print(f"\nin {datasets.local_root()}")
+        return 0
+    with progress(args.episodes * max_steps, f"recording {args.policy}") as bar:
+        dataset = _library(
+            lambda: datasets.record_dataset(
+                args.policy,
+                args.epsilon,
+                args.episodes,
+                args.env,
+                args.seed,
+                dataset_id=args.dataset_id,
+                force=args.force,
+                progress=bar.update,
+            )
+        )
+    meta = dataset.storage.metadata
+    print(
+        f"recorded {meta['dataset_id']}: {meta['total_episodes']} episodes, {meta['total_steps']} steps "
+        f"in {meta['recording_seconds']:.1f} s (behaviour {meta['behaviour_policy']}, epsilon {meta['epsilon']}, "
+        f"seed {meta['seed']})\nin {datasets.local_root()}"
+    )
+    return 0
+
+
+def run_ope(args: argparse.Namespace) -> int:
+    """``heartpole ope``: each estimator's estimate, its error against the truth, the truth's interval."""
+    ope = _offline("ope")
+    report = _library(
+        lambda: ope.evaluate_off_policy(
+            args.dataset,
+            args.policy,
+            args.gamma,
+            truth_episodes=args.truth_episodes,
+            seed=args.seed,
+            expected_rewards=args.expected_risk,
+        )
+    )
+    if args.json:
+        print(json.dumps(report.to_dict()))
+        return 0
+    print(format_report(report))
+    return 0
+
+
+def format_report(report: Any) -> str:
+    """The estimates as a table under a header naming the truth and its interval."""
+    truth = report.truth
+    low, high = truth.value_ci95
+    rows = [
+        [e.estimator, f"{e.value:.4f}", _ci(e.ci95), f"{report.error(e):+.4f}", f"{abs(report.error(e)):.4f}"]
+        for e in report.estimates
+    ]
+    rewards = "expected-risk rewards" if report.expected_rewards else "realized rewards"
+    header = (
+        f"{report.policy} from {report.dataset_id}, gamma {report.gamma:g}, {rewards}\n"
+        f"true value {truth.value:.4f} (95% CI [{low:.4f}, {high:.4f}], {truth.episodes} episodes run on the env)"
+    )
+    return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|"], rows)])
+
+
+# ------------------------------------------------------------------------------------------------------
+# helpers
+
+
+def _ci(interval: tuple[float, float]) -> str:
+    if not all(math.isfinite(v) for v in interval):
+        return "-"
+    return f"[{interval[0]:.4f}, {interval[1]:.4f}]"
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Treat SIGTERM like Ctrl-C while recording, so the temporary dataset is removed either way."""
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _offline(module: str) -> Any:
+    import importlib
+
+    try:
+        importlib.import_module("minari")
+    except ImportError:
+        raise CommandError("Minari is not installed; install it with: pip install 'heartpole[offline]'") from None
+    return importlib.import_module(f"heartpole.offline.{module}")
+
+
+def _max_steps(env_id: str) -> int:
+    from heartpole.policies import env_dynamics
+
+    return int(env_dynamics(env_id).params.max_steps)
+
+
+def _library(call: Callable[[], T]) -> T:
+    """Run ``call``; turn the errors a user can cause into :class:`CommandError` s (one line, exit 2)."""
+    try:
+        return call()
+    except (ValueError, OSError) as error:
+        raise CommandError(" ".join(str(error).split())) from None
+
+
+def _epsilon(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value <= 1.0:
+        raise_arg(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def _gamma(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 < value <= 1.0:
+        raise_arg(f"expected a discount in (0, 1], got {text!r}")
+    return value

@@ -1,0 +1,209 @@
+"""Whole episodes as arrays: what a behaviour policy did, with its propensities and the env's infos.
+
+:func:`collect` runs a behaviour policy on the native vector env and returns :class:`Trajectories`;
+:mod:`heartpole.offline.datasets` writes them as a Minari dataset and :meth:`Trajectories.from_dataset`
+reads one back. The off-policy estimators (:mod:`heartpole.offline.ope`) and learners work on these arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from heartpole.offline.behaviour import EpsilonGreedy, check_actions, check_deterministic, sample
+from heartpole.policies import quiet_version_warnings
+
+INFO_KEYS = ("heart_attack_risk", "productivity", "heart_attack", "score")
+_INFO_DTYPES = {"heart_attack_risk": np.float32, "productivity": np.float32, "heart_attack": bool, "score": np.float32}
+
+
+@dataclass
+class Trajectories:
+    """``N`` episodes of ``T`` steps. Per-observation arrays have ``T + 1`` entries, per-action arrays ``T``.
+
+    ``action_probabilities[n, t]`` is the behaviour's distribution at observation ``t``; the infos at
+    ``t + 1`` are those the env returned for the step from ``t`` (index 0 is the reset, all zeros).
+    ``penalty`` is the env's heart-attack penalty (100 in HeartPole).
+    """
+
+    observations: np.ndarray  # (N, T + 1, obs_dim) float32
+    actions: np.ndarray  # (N, T) int64
+    rewards: np.ndarray  # (N, T) float64
+    action_probabilities: np.ndarray  # (N, T + 1, num_actions) float64
+    heart_attack_risk: np.ndarray  # (N, T + 1) float32
+    productivity: np.ndarray  # (N, T + 1) float32
+    heart_attack: np.ndarray  # (N, T + 1) bool
+    score: np.ndarray  # (N, T + 1) float32
+    penalty: float = 100.0
+
+    @property
+    def episodes(self) -> int:
+        """The number of episodes ``N``."""
+        return int(self.actions.shape[0])
+
+    @property
+    def steps(self) -> int:
+        """The number of steps per episode ``T``."""
+        return int(self.actions.shape[1])
+
+    @property
+    def num_actions(self) -> int:
+        """The env's number of actions."""
+        return int(self.action_probabilities.shape[2])
+
+    @property
+    def propensities(self) -> np.ndarray:
+        """``(N, T)``: the behaviour's probability of each action it took."""
+        return np.take_along_axis(self.action_probabilities[:, :-1], self.actions[..., None], axis=2)[..., 0]
+
+    def expected_rewards(self) -> np.ndarray:
+        """``(N, T)``: rewards with each heart-attack coin replaced by its probability (same expectation).
+
+        ``reward + penalty * heart_attack - penalty * heart_attack_risk``: the coin's noise removed, as in
+        the expected-risk estimate of :func:`heartpole.evaluate`.
+        """
+        attacks = self.heart_attack[:, 1:].astype(np.float64)
+        return self.rewards + self.penalty * (attacks - self.heart_attack_risk[:, 1:].astype(np.float64))
+
+    def returns(self, gamma: float = 1.0, expected: bool = False) -> np.ndarray:
+        """``(N,)``: each episode's discounted return from its first observation."""
+        rewards = self.expected_rewards() if expected else self.rewards
+        return rewards @ (gamma ** np.arange(self.steps))
+
+    def subset(self, index: Any) -> Trajectories:
+        """The episodes selected by ``index`` (a slice, mask or index array)."""
+        return Trajectories(
+            **{f.name: getattr(self, f.name)[index] for f in fields(self) if f.name != "penalty"},
+            penalty=self.penalty,
+        )
+
+    @classmethod
+    def concatenate(cls, parts: Sequence[Trajectories]) -> Trajectories:
+        """The episodes of ``parts``, in order."""
+        names = [f.name for f in fields(cls) if f.name != "penalty"]
+        return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names}, penalty=parts[0].penalty)
+
+    @classmethod
+    def from_dataset(cls, dataset: Any, penalty: float | None = None) -> Trajectories:
+        """Read a Minari dataset recorded by :func:`heartpole.offline.datasets.record_dataset`.
+
+        Raises:
+            ValueError: if the dataset lacks HeartPole's infos or its episodes differ in length.
+        """
+        episodes = list(dataset.iterate_episodes())
+        if not episodes:
+            raise ValueError(f"dataset {dataset.spec.dataset_id!r} has no episodes")
+        missing = {"action_probabilities", *INFO_KEYS} - set(episodes[0].infos or {})
+        if missing:
+            raise ValueError(
+                f"dataset {dataset.spec.dataset_id!r} lacks the infos {sorted(missing)}: record it with "
+                "'heartpole dataset', which stores the behaviour's propensities"
+            )
+        if len({len(e.actions) for e in episodes}) != 1:
+            raise ValueError(f"dataset {dataset.spec.dataset_id!r} has episodes of different lengths")
+        if penalty is None:
+            penalty = _penalty(dataset)
+        return cls(
+            observations=np.stack([e.observations for e in episodes]).astype(np.float32),
+            actions=np.stack([e.actions for e in episodes]).astype(np.int64),
+            rewards=np.stack([e.rewards for e in episodes]).astype(np.float64),
+            action_probabilities=np.stack([e.infos["action_probabilities"] for e in episodes]).astype(np.float64),
+            **{key: np.stack([e.infos[key] for e in episodes]).astype(_INFO_DTYPES[key]) for key in INFO_KEYS},
+            penalty=float(penalty),
+        )
+
+
+def collect(
+    behaviour: EpsilonGreedy,
+    episodes: int,
+    env_id: str = "HeartPole-v0",
+    seeds: Sequence[int] = (0,),
+    progress: Callable[[int], None] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> Trajectories:
+    """Run ``behaviour`` for ``episodes`` whole episodes, ``len(seeds)`` chunks side by side, one seed each.
+
+    Raises:
+        ValueError: if the behaviour's policy returns invalid actions or acts at random without saying how.
+    """
+    return Trajectories.concatenate(list(iter_collect(behaviour, episodes, env_id, seeds, progress, env_kwargs)))
+
+
+def iter_collect(
+    behaviour: EpsilonGreedy,
+    episodes: int,
+    env_id: str = "HeartPole-v0",
+    seeds: Sequence[int] = (0,),
+    progress: Callable[[int], None] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> Iterator[Trajectories]:
+    """:func:`collect` one chunk at a time (``ceil(episodes / len(seeds))`` episodes each), to bound memory."""
+    chunk = -(-episodes // len(seeds))
+    for first, seed in zip(range(0, episodes, chunk), seeds):
+        yield _collect_chunk(behaviour, min(chunk, episodes - first), env_id, seed, progress, env_kwargs or {})
+
+
+def _collect_chunk(
+    behaviour: EpsilonGreedy,
+    size: int,
+    env_id: str,
+    reset_seed: int,
+    progress: Callable[[int], None] | None,
+    env_kwargs: dict[str, Any],
+) -> Trajectories:
+    import gymnasium as gym
+
+    with quiet_version_warnings():
+        env = gym.make_vec(env_id, num_envs=size, vectorization_mode="vector_entry_point", **env_kwargs)
+    try:
+        steps, num_actions = int(env.unwrapped.max_steps), behaviour.num_actions
+        penalty = float(env.unwrapped.dynamics.params.heart_attack_penalty)
+        obs, _ = env.reset(seed=reset_seed)
+        check_deterministic(behaviour.policy, obs)
+        observations = np.empty((steps + 1, size, obs.shape[1]), dtype=np.float32)
+        probabilities = np.empty((steps + 1, size, num_actions), dtype=np.float64)
+        actions = np.empty((steps, size), dtype=np.int64)
+        rewards = np.empty((steps, size), dtype=np.float64)
+        infos = {key: np.zeros((steps + 1, size), dtype=dtype) for key, dtype in _INFO_DTYPES.items()}
+        truncated = np.zeros(size, dtype=bool)
+        observations[0] = obs
+        for t in range(steps):
+            probabilities[t] = behaviour.action_probabilities(obs)
+            actions[t] = check_actions(sample(probabilities[t], behaviour.rng), size, num_actions, behaviour.name)
+            obs, rewards[t], _, truncated, info = env.step(actions[t])
+            observations[t + 1] = obs
+            for key in INFO_KEYS:
+                infos[key][t + 1] = info[key]
+            if progress:
+                progress(size)
+        if not np.all(truncated):
+            raise RuntimeError(f"episodes did not end after max_steps={steps} steps")
+        probabilities[steps] = behaviour.action_probabilities(obs)
+    finally:
+        env.close()
+    return Trajectories(
+        observations=observations.transpose(1, 0, 2).copy(),
+        actions=actions.T.copy(),
+        rewards=rewards.T.copy(),
+        action_probabilities=probabilities.transpose(1, 0, 2).copy(),
+        **{key: value.T.copy() for key, value in infos.items()},
+        penalty=penalty,
+    )
+
+
+def _penalty(dataset: Any) -> float:
+    import gymnasium as gym
+
+    env_id = dataset.storage.metadata.get("env_id", "HeartPole-v0")
+    with quiet_version_warnings():
+        try:
+            env = gym.make(env_id)
+        except gym.error.Error:
+            return 100.0
+    try:
+        return float(env.unwrapped.dynamics.params.heart_attack_penalty)
+    finally:
+        env.close()
