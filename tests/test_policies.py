@@ -252,3 +252,49 @@ def test_a_truncated_model_file_is_refused(models: dict[str, Path], tmp_path: Pa
     healthy.write_bytes(data)
     with pytest.raises(ValueError, match="not a VecNormalize file"):
         load_policy(str(healthy))
+
+
+def _expert_rate_over_whole_episodes(params, grid: int = 400) -> float:
+    """expert_rate's fixed point computed the direct way, over arrays of the whole episode's length."""
+    from heartpole.model import alertness_decay, productivity
+
+    low, high = params.wake_alertness
+    wake = low + (high - low) * (np.arange(grid) + 0.5) / grid
+    horizon = params.max_steps
+    decay = np.concatenate([[0.0], np.cumsum(alertness_decay(np.arange(horizon - 1, dtype=np.float64)))])
+    earned = productivity(wake[:, None] - decay[None, :], 0.0)
+    rate = 0.0
+    for _ in range(200):
+        working = earned >= rate
+        working[:, 0] = True
+        length = np.where(working.all(axis=1), horizon, np.argmin(working, axis=1))
+        work = np.where(np.arange(horizon)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
+        days = horizon / length.mean()
+        new_rate = days * work.mean() / (horizon + params.sleep_half_hours * max(days - 1.0, 0.0))
+        if abs(new_rate - rate) < 1e-12:
+            break
+        rate = new_rate
+    return float(rate)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [Params(), Params(max_steps=1), Params(max_steps=2), Params(max_steps=20), Params(max_steps=3000),
+     Params(wake_alertness=(4.0, 9.0)), Params(wake_alertness=(-1.0, -0.5)), Params(sleep_half_hours=0)],
+    ids=lambda p: f"{p.max_steps}-{p.wake_alertness}-{p.sleep_half_hours}",
+)  # fmt: skip
+def test_expert_rate_equals_the_whole_episode_computation(params) -> None:
+    assert expert_rate(params) == _expert_rate_over_whole_episodes(params)
+
+
+def test_expert_rate_memory_does_not_grow_with_the_episode_length() -> None:
+    import tracemalloc
+
+    peaks = []
+    for max_steps in (1_000, 1_000_000):
+        expert_rate.cache_clear()
+        tracemalloc.start()
+        expert_rate(Params(max_steps=max_steps))
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert peaks[1] < 2 * peaks[0] + 1_000_000, peaks  # was 400 x max_steps float64 arrays: 3.2 GB each

@@ -233,25 +233,48 @@ def expert_rate(params: Params, grid: int = 400) -> float:
     days and ``D / E[L] - 1`` sleeps, so its score is ``(D / E[L]) E[W] / (D + sleep (D / E[L] - 1))``.
     Iterating ``rate <- score(rate)`` from 0 converges to the best threshold (Dinkelbach's method), since a
     threshold equal to the score it achieves cannot be improved on. ``w`` is integrated on a midpoint grid.
+
+    Memory does not grow with ``max_steps``: the rate is never negative, and a day's work turns negative
+    (and so stops) once alertness is below 0, so only the half-hours up to then are computed.
     """
     low, high = params.wake_alertness
     wake = low + (high - low) * (np.arange(grid) + 0.5) / grid
     horizon = params.max_steps
-    decay = np.cumsum(alertness_decay(np.arange(horizon - 1, dtype=np.float64)))
-    alertness = np.concatenate([wake[:, None], wake[:, None] - decay[None, :]], axis=1)
-    earned = productivity(alertness, 0.0)
+    earned = productivity(_waking_alertness(wake, horizon), 0.0)
+    columns = earned.shape[1]  # < horizon: every day has ended by the last column
     rate = 0.0
     for _ in range(200):
         working = earned >= rate
         working[:, 0] = True  # the decision to sleep comes with the first half-hour of the new day
-        length = np.where(working.all(axis=1), horizon, np.argmin(working, axis=1))
-        work = np.where(np.arange(horizon)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
+        whole = working.all(axis=1)
+        length = np.where(whole, horizon, np.argmin(working, axis=1))
+        work = np.where(np.arange(columns)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
         days = horizon / length.mean()
         new_rate = days * work.mean() / (horizon + params.sleep_half_hours * max(days - 1.0, 0.0))
         if abs(new_rate - rate) < 1e-12:
             break
         rate = new_rate
     return float(rate)
+
+
+def _waking_alertness(wake: np.ndarray, horizon: int, block: int = 64) -> np.ndarray:
+    """Alertness over a day for each waking alertness in ``wake``: ``(len(wake), columns)``.
+
+    ``columns`` is ``horizon``, or fewer: up to the first half-hour after waking at which every day's
+    alertness is below 0 (productivity is negative from there on, and alertness only falls).
+    """
+    decay: list[np.ndarray] = [np.zeros(1)]
+    total, start = 0.0, 0
+    while start < horizon - 1 and (start == 0 or total <= wake.max()):
+        steps = np.arange(start, min(start + block, horizon - 1), dtype=np.float64)
+        part = total + np.cumsum(alertness_decay(steps))
+        decay.append(part)
+        total, start = float(part[-1]), start + len(steps)
+        block *= 2
+    cumulative = np.concatenate(decay)
+    if total > wake.max():  # cut just after the first half-hour at which every day is below 0
+        cumulative = cumulative[: max(int(np.argmax(cumulative > wake.max())) + 1, 2)]
+    return wake[:, None] - cumulative[None, :]
 
 
 BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
