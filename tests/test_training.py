@@ -20,6 +20,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 torch = pytest.importorskip("torch")
 
+from stable_baselines3.common.monitor import Monitor  # noqa: E402
+
 import heartpole  # noqa: E402
 from heartpole import training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
@@ -111,10 +113,40 @@ def test_adapter_answers_vecenv_queries() -> None:
     assert venv.get_attr("max_steps") == [1000, 1000]
     assert venv.get_attr("max_steps", indices=1) == [1000]
     assert venv.env_is_wrapped(gym.Wrapper) == [False, False]
+    assert venv.env_is_wrapped(Monitor) == [True, True]  # it reports episodes as Monitor does
     assert venv.render_mode is None
     with pytest.raises(IndexError, match="out of range for 2 envs"):
         venv.get_attr("max_steps", indices=[5])
     venv.close()
+
+
+class _AlwaysCoffee:
+    """A stand-in model for SB3's evaluate_policy: drinks coffee in every env."""
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=False):
+        return np.ones(len(obs), dtype=np.int64), state
+
+
+@pytest.mark.parametrize("normalized", [False, True])
+def test_sb3_evaluate_policy_sees_the_envs_true_return(normalized: bool) -> None:
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    venv = training.make_vec_env(
+        n_envs=4, seed=3, reward=SHAPED_REWARD, env_kwargs={"max_steps": 30}, normalize_rewards=normalized
+    )
+    returns, lengths = evaluate_policy(_AlwaysCoffee(), venv, n_eval_episodes=8, return_episode_rewards=True)
+    assert lengths == [30] * 8
+    # the same episodes, stepped by hand: the env's own rewards summed, and the shaped ones
+    env = HeartPoleSB3VecEnv(num_envs=4, reward=SHAPED_REWARD, env_kwargs={"max_steps": 30})
+    env.seed(3)
+    env.reset()
+    shaped = np.zeros(4)
+    for _ in range(30):
+        _, reward, _, infos = env.step(np.ones(4, dtype=np.int64))
+        shaped += reward
+    true = np.array([info["episode"]["r"] for info in infos])
+    assert np.allclose(sorted(returns[:4]), sorted(true))
+    assert not np.allclose(sorted(returns[:4]), sorted(shaped))
 
 
 def test_adapter_env_method_calls_nothing_for_no_indices() -> None:

@@ -75,6 +75,7 @@ TRAIN_EXTRA = "pip install 'heartpole[train]'"
 try:
     from stable_baselines3.common.base_class import BaseAlgorithm
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import VecEnv, VecNormalize
     from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 except ImportError as error:  # pragma: no cover - `heartpole train` checks for the modules first
@@ -336,8 +337,14 @@ class HeartPoleSB3VecEnv(VecEnv):
         return [result for _ in chosen]
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
-        """Always ``False``: the native vector env wraps no single envs."""
-        return [False for _ in self._indices(indices)]
+        """``True`` for SB3's ``Monitor`` only: each env reports its episodes as ``Monitor`` would.
+
+        SB3's ``evaluate_policy`` (and so ``EvalCallback``) reads ``info["episode"]["r"]``, the env's true
+        return, only when it is told the envs are ``Monitor``-wrapped; otherwise it sums the rewards it is
+        given, here the training reward. The native vector env wraps no single envs in anything else.
+        """
+        monitored = wrapper_class is Monitor
+        return [monitored for _ in self._indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         """One RGB frame per env when made with ``render_mode="rgb_array"``."""
