@@ -117,3 +117,21 @@ def test_evaluate_a_saved_model(tmp_path: Path) -> None:
     result = heartpole("evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4", "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["policy"].endswith("dqn.zip")
+
+
+def test_evaluate_tells_which_recorded_statistics_a_model_applies(tmp_path: Path) -> None:
+    sb3 = pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    import heartpole as hp
+
+    sb3.DQN("MlpPolicy", hp.HeartPole(), policy_kwargs={"net_arch": [8]}, seed=0).save(tmp_path / "dqn.zip")
+    VecNormalize(DummyVecEnv([hp.HeartPole])).save(str(tmp_path / "vecnormalize.pkl"))
+    result = heartpole("evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4")
+    assert result.returncode == 0, result.stderr
+    assert "ignoring" in result.stderr and "normalises observations" not in result.stderr  # not recorded
+    record = {"algo": "dqn", "model": "dqn.zip", "vecnormalize": "vecnormalize.pkl"}
+    (tmp_path / "heartpole.json").write_text(json.dumps(record))
+    result = heartpole("evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4")
+    assert result.returncode == 0, result.stderr
+    assert f"normalises observations with {tmp_path / 'vecnormalize.pkl'}" in result.stderr

@@ -327,6 +327,12 @@ def test_train_run_writes_files_that_load_and_act(tmp_path: Path, algo: str) -> 
     for name in RUN_FILES:
         assert (folder / name).is_file(), name
     sidecar = json.loads((folder / "heartpole.json").read_text())
+    from heartpole.policies import file_sha256
+
+    assert sidecar["model"] == "model.zip" and sidecar["model_sha256"] == file_sha256(folder / "model.zip")
+    assert sidecar["vecnormalize"] == "vecnormalize.pkl"
+    assert sidecar["vecnormalize_sha256"] == file_sha256(folder / "vecnormalize.pkl")
+    assert load_policy(str(folder / "model.zip")).normalizer_path == folder / "vecnormalize.pkl"
     assert (sidecar["algo"], sidecar["env_id"], sidecar["seed"], sidecar["timesteps"]) == (
         algo,
         "HeartPole-v0",
@@ -358,7 +364,7 @@ def test_loaded_policy_matches_the_trained_model(tmp_path: Path) -> None:
     trained = training.train_model(config)
     trained.model.save(tmp_path / "model.zip")
     trained.normalizer.save(str(tmp_path / "vecnormalize.pkl"))  # type: ignore[union-attr]
-    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "ppo"}))
+    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "ppo", "vecnormalize": "vecnormalize.pkl"}))
     obs = np.random.default_rng(0).uniform(0, [2, 3, 0.1, 40, 1500, 400], size=(256, 6)).astype(np.float32)
     expected, _ = trained.model.predict(trained.normalizer.normalize_obs(obs), deterministic=True)  # type: ignore[union-attr]
     np.testing.assert_array_equal(load_policy(str(tmp_path / "model.zip"))(obs), expected)

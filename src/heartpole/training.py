@@ -704,6 +704,8 @@ def train_run(
     if trained.normalizer is not None:
         trained.normalizer.save(str(folder / VECNORMALIZE_FILE))
     write_curve(folder / CURVE_FILE, trained.curve)
+    from heartpole.policies import file_sha256
+
     sidecar = {
         "algo": config.algo,
         "env_id": config.env_id,
@@ -712,7 +714,11 @@ def train_run(
         "preset": config.preset,
         "policy": "MlpPolicy",
         "config": config.to_dict(),
+        "model": MODEL_FILE,
+        "model_sha256": file_sha256(folder / MODEL_FILE),
+        # the statistics saved with this model: load_policy applies these and no others
         "vecnormalize": VECNORMALIZE_FILE if trained.normalizer is not None else None,
+        "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_FILE) if trained.normalizer is not None else None,
         "train_seconds": round(trained.seconds, 2),
         "versions": _versions(),
     }

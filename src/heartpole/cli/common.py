@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -11,6 +12,13 @@ from typing import Any
 
 class CommandError(Exception):
     """A problem the user can fix; printed as one line on stderr with exit code 2."""
+
+
+def tell_normalization(policy: Any) -> None:
+    """Say on stderr which saved observation statistics a loaded model applies, if any."""
+    path = getattr(policy, "normalizer_path", None)
+    if path is not None:
+        print(f"note: {policy.name} normalises observations with {path} (recorded with it)", file=sys.stderr)
 
 
 def positive_int(text: str) -> int:

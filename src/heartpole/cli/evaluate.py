@@ -20,6 +20,7 @@ from heartpole.cli.common import (
     markdown_table,
     positive_int,
     seed_int,
+    tell_normalization,
     writable_path,
 )
 from heartpole.progress import progress
@@ -152,12 +153,16 @@ def run_baselines(args: argparse.Namespace) -> int:
 def _evaluate(spec: str, args: argparse.Namespace) -> Any:
     """Evaluate ``spec`` with the run options of ``args``, a progress bar on stderr, errors as one line."""
     from heartpole.evaluation import evaluate
-    from heartpole.policies import env_dynamics
+    from heartpole.policies import BUILTIN_POLICIES, env_dynamics, load_policy
 
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
+    policy: Any = spec
+    if spec not in BUILTIN_POLICIES:  # a model: loaded here, so the user hears which statistics it applies
+        policy = _library(lambda: load_policy(spec, args.env))
+        tell_normalization(policy)
     with progress(args.episodes * max_steps, f"{spec}") as bar:
         return _library(
-            lambda: evaluate(spec, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
+            lambda: evaluate(policy, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
         )
 
 

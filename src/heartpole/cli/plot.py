@@ -15,7 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.cli.common import CommandError, atomic_write, positive_int, seed_int, writable_path
+from heartpole.cli.common import (
+    CommandError,
+    atomic_write,
+    positive_int,
+    seed_int,
+    tell_normalization,
+    writable_path,
+)
 from heartpole.progress import progress
 
 ORDER = 30
@@ -123,9 +130,11 @@ def _policy(args: argparse.Namespace) -> Callable[[np.ndarray], Any]:
     from heartpole.policies import load_policy
 
     try:
-        return load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
+        policy = load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
     except (ValueError, FileNotFoundError) as error:
         raise CommandError(str(error)) from None
+    tell_normalization(policy)
+    return policy
 
 
 def _write_figure(figure: Any, path: Path, plots: Any) -> None:
