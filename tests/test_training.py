@@ -280,6 +280,51 @@ def test_default_preset_is_ppo_on_the_shaped_reward() -> None:
     assert preset_config(algo="dqn").hyperparameters["gamma"] == 0.95
 
 
+def test_default_preset_on_a_variant_uses_the_variants_rate() -> None:
+    assert preset_config(env_id="HeartPole-v1").reward.score_rate == 0.68  # 98% of v1's best, 0.69
+    assert preset_config(env_id="HeartPole-v1", score_rate="auto").reward.score_rate == "auto"
+    assert preset_config(env_id="HeartPole-v1", score_rate=0.5).reward.score_rate == 0.5
+    assert preset_config(score_rate="best").reward == SHAPED_REWARD  # v0: its tuned 0.32
+    heartpole.register_variant("AwakeTrainPole-v0", actions=heartpole.V0_ACTIONS[:3])
+    try:  # no sleep: no known best, so the rate is estimated while training
+        assert preset_config(env_id="AwakeTrainPole-v0").reward.score_rate == "auto"
+    finally:
+        gym.registry.pop("AwakeTrainPole-v0")
+        heartpole.registry._variants.discard("AwakeTrainPole-v0")
+    with pytest.raises(ValueError, match="no score rate"):
+        preset_config("tutorial", score_rate="auto")
+
+
+def test_runs_are_judged_against_their_own_envs_bar() -> None:
+    evaluation = {"mean_return": -124.5, "ci95": [-130.0, -119.0], "expected_return": -124.5,
+                  "expected_ci95": [-124.6, -124.4], "heart_attacks_per_episode": 1.25, "score": 0.45,
+                  "drinks_per_episode": 0.0, "sleeps_per_episode": 60.0}  # fmt: skip
+    v0 = training.run_summary(preset_config(), evaluation, 1.0, 1.0)
+    v1 = training.run_summary(preset_config(env_id="HeartPole-v1"), evaluation, 1.0, 1.0)
+    assert v0["solved"] and v0["solved_bar"]["score_at_least"] == 0.30
+    assert not v1["solved"] and v1["solved_bar"]["score_at_least"] == 0.63  # v1's best score is 0.69
+
+
+def test_train_command_exposes_the_score_rate(tmp_path: Path) -> None:
+    import argparse
+
+    from heartpole.cli.common import CommandError
+    from heartpole.cli.train import build_config
+
+    def args(**kw) -> argparse.Namespace:
+        base = {"preset": "default", "algo": None, "env": "HeartPole-v1", "timesteps": None, "n_envs": None,
+                "seed": "0", "score_rate": "best"}  # fmt: skip
+        return argparse.Namespace(**{**base, **kw})
+
+    assert build_config(args()).reward.score_rate == 0.68
+    assert build_config(args(score_rate="auto")).reward.score_rate == "auto"
+    assert build_config(args(score_rate="0.4")).reward.score_rate == 0.4
+    with pytest.raises(CommandError, match="--score-rate takes best, auto or a number"):
+        build_config(args(score_rate="fast"))
+    with pytest.raises(CommandError, match="applies to the default preset"):
+        build_config(args(preset="tutorial", score_rate="auto"))
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

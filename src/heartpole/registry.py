@@ -119,18 +119,24 @@ SOLVED_ATTACKS_ABOVE_FLOOR = 1.05
 SOLVED_SHARE_OF_BEST_SCORE = 0.92
 
 
+def best_known_rate(dynamics: Dynamics) -> float | None:
+    """The best long-run score known for ``dynamics``: the ``expert`` policy's rate (0.327 for v0, 0.69 for
+    v1), or ``None`` for a variant without the ``do_nothing`` and ``sleep`` actions the expert needs."""
+    from heartpole.policies import ExpertPolicy
+
+    try:
+        return ExpertPolicy(dynamics).rate
+    except ValueError:
+        return None
+
+
 def solved_bar(dynamics: Dynamics) -> SolvedBar:
     """The solved bar of the env with ``dynamics``: v0's issue-3 bar (<= 1.30 heart attacks, score >= 0.30)
     carried over to any variant by the same proportions (see :class:`SolvedBar`)."""
-    from heartpole.policies import ExpertPolicy
-
     params = dynamics.params
     floor = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
     attacks = round(SOLVED_ATTACKS_ABOVE_FLOOR * floor, 2)
-    try:
-        best_rate: float | None = ExpertPolicy(dynamics).rate
-    except ValueError:  # no do_nothing or sleep action: no known best
-        best_rate = None
+    best_rate = best_known_rate(dynamics)
     score = None if best_rate is None else round(SOLVED_SHARE_OF_BEST_SCORE * best_rate, 2)
     threshold = round((score or 0.0) - params.heart_attack_penalty * attacks, 6)
     return SolvedBar(attacks, score, threshold)
