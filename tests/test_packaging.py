@@ -78,3 +78,11 @@ def test_the_sdist_ships_what_tests_and_readme_need() -> None:
     assert images and all((ROOT / image).is_file() for image in images)
     assert "recursive-include docs *.md *.png *.gif" in manifest
     assert all(Path(image).suffix in (".png", ".gif") for image in images)
+
+
+def test_readme_sb3_snippets_run_pytorch_on_one_thread() -> None:
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.DOTALL)
+    sb3 = [block for block in blocks if "stable_baselines3" in block and ".learn(" in block]
+    assert sb3
+    for block in sb3:  # set before the model is built and trained
+        assert "torch.set_num_threads(1)" in block.split(".learn(")[0], block
