@@ -102,7 +102,7 @@ def test_corrupt_model_and_bad_output_folder(tmp_path: Path) -> None:
     not_a_folder = tmp_path / "file"
     not_a_folder.write_text("")
     result = heartpole("baselines", "--episodes", "2", "--out", str(not_a_folder))
-    assert_one_line_error(result, "output folder")
+    assert_one_line_error(result, "is a file, expected a folder")
     result = heartpole("baselines", "--episodes", "2", "--policy", "expret", "--out", str(tmp_path / "out"))
     assert_one_line_error(result, "unknown policy 'expret'")
     assert not (tmp_path / "out" / "baselines.md").exists()

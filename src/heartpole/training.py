@@ -982,6 +982,7 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
+        os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes folders private; give the usual permissions
         yield staging
         check_output_folder(out, force)
         if out.exists():
@@ -999,6 +1000,12 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
             except OSError:
                 break
         raise
+
+
+def _umask() -> int:
+    current = os.umask(0)
+    os.umask(current)
+    return current
 
 
 def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
