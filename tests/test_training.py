@@ -173,7 +173,9 @@ def test_vecmonitor_and_sb3_logger_read_the_episodes() -> None:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor
 
-    venv = VecMonitor(HeartPoleSB3VecEnv(num_envs=2, env_kwargs={"max_steps": 50}))
+    # SB3 warns that the adapter already reports episodes as Monitor does (VecMonitor is not needed)
+    with pytest.warns(UserWarning, match="already wrapped with a `Monitor`"):
+        venv = VecMonitor(HeartPoleSB3VecEnv(num_envs=2, env_kwargs={"max_steps": 50}))
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(256)  # two rollouts of 64 steps x 2 envs: 128 steps per env, two episodes each
     assert len(model.ep_info_buffer) == 4
