@@ -108,6 +108,12 @@ def test_make_with_both_names_agrees_everywhere() -> None:
     assert steps_to_truncation(env) == 9
 
 
+def test_a_variants_length_is_given_as_max_steps() -> None:
+    with pytest.raises(ValueError, match=r"episode length is max_steps .*pass max_steps=40"):
+        heartpole.register_variant("LongPole-v0", max_episode_steps=40)
+    assert "LongPole-v0" not in gym.registry
+
+
 @pytest.mark.parametrize("env_id", ["HeartPole-v2", "HeartPole-v10"])
 def test_heartpoles_own_names_are_reserved(env_id: str) -> None:
     with pytest.raises(ValueError, match="reserved for HeartPole's own versions"):

@@ -342,6 +342,11 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
     for name, where in _MAKE_TIME.items():
         if name in params:
             raise ValueError(f"{name} is chosen when making the env, not when defining a variant: pass it to {where}")
+    if "max_episode_steps" in params:
+        raise ValueError(
+            "a variant's episode length is max_steps (its spec's max_episode_steps is set from it); "
+            f"pass max_steps={params['max_episode_steps']!r}"
+        )
     unknown = sorted(set(params) - set(PARAMETERS))
     if unknown:
         raise ValueError(
