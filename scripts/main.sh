@@ -7,4 +7,4 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 out=runs/main
 .venv/bin/heartpole train --out "$out" --force "$@"
-.venv/bin/heartpole baselines --policy "$out/model.zip" --out "$out"
+.venv/bin/heartpole baselines --policy "$out/model.zip" --out "$out" --force

@@ -102,7 +102,7 @@ def test_corrupt_model_and_bad_output_folder(tmp_path: Path) -> None:
     not_a_folder = tmp_path / "file"
     not_a_folder.write_text("")
     result = heartpole("baselines", "--episodes", "2", "--out", str(not_a_folder))
-    assert_one_line_error(result, "output folder")
+    assert_one_line_error(result, "is a file, expected a folder")
     result = heartpole("baselines", "--episodes", "2", "--policy", "expret", "--out", str(tmp_path / "out"))
     assert_one_line_error(result, "unknown policy 'expret'")
     assert not (tmp_path / "out" / "baselines.md").exists()
@@ -117,3 +117,22 @@ def test_evaluate_a_saved_model(tmp_path: Path) -> None:
     result = heartpole("evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4", "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["policy"].endswith("dqn.zip")
+
+
+def test_evaluate_tells_which_recorded_statistics_a_model_applies(tmp_path: Path, capsys) -> None:
+    sb3 = pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    import heartpole as hp
+    from heartpole.cli import main
+
+    sb3.DQN("MlpPolicy", hp.HeartPole(), policy_kwargs={"net_arch": [8]}, seed=0).save(tmp_path / "dqn.zip")
+    VecNormalize(DummyVecEnv([hp.HeartPole])).save(str(tmp_path / "vecnormalize.pkl"))
+    argv = ["evaluate", "--policy", str(tmp_path / "dqn.zip"), "--episodes", "4"]
+    with pytest.warns(UserWarning, match="ignoring .*vecnormalize.pkl"):  # lying there, not recorded
+        assert main(argv) == 0
+    assert "normalises observations" not in capsys.readouterr().err
+    record = {"algo": "dqn", "model": "dqn.zip", "vecnormalize": "vecnormalize.pkl"}
+    (tmp_path / "heartpole.json").write_text(json.dumps(record))
+    assert main(argv) == 0
+    assert f"normalises observations with {tmp_path / 'vecnormalize.pkl'}" in capsys.readouterr().err

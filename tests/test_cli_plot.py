@@ -116,17 +116,61 @@ def test_unknown_policy_and_missing_model(tmp_path: Path, capsys: pytest.Capture
     assert sorted(p.name for p in tmp_path.iterdir()) == ["junk.zip"]
 
 
-def test_output_in_a_missing_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    missing = tmp_path / "no" / "such"
+WRITERS = {
+    "plot model": lambda out: ["plot", "model", "--out", str(out)],
+    "plot episode": lambda out: ["plot", "episode", "--policy", "expert", "--steps", "3", "--out", str(out / "e.png")],
+    "record": lambda out: ["record", "--policy", "expert", "--steps", "3", "--out", str(out / "e.gif")],
+    "baselines": lambda out: ["baselines", "--episodes", "2", "--out", str(out)],
+}
+
+
+@pytest.mark.parametrize("command", list(WRITERS))
+def test_every_writer_creates_folders_and_replaces_files_only_with_force(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "no" / "such"
+    old = os.umask(0o027)
+    try:
+        code, _, err = run(capsys, *WRITERS[command](out))
+        assert code == 0, err
+        written = sorted(p for p in out.rglob("*") if p.is_file())
+        assert written
+        for folder in (tmp_path / "no", out):
+            assert folder.stat().st_mode & 0o777 == 0o750  # the umask's modes, as mkdir gives
+        for path in written:
+            assert path.stat().st_mode & 0o777 == 0o640
+        before = {path: path.stat().st_mtime_ns for path in written}
+        assert_error(run(capsys, *WRITERS[command](out)), command.split()[0], "exists; pass --force to replace it")
+        assert {path: path.stat().st_mtime_ns for path in written} == before
+        code, _, err = run(capsys, *WRITERS[command](out), "--force")
+        assert code == 0, err
+    finally:
+        os.umask(old)
+
+
+def test_train_output_folder_has_the_umasks_mode(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    from heartpole import training
+
+    old = os.umask(0o027)
+    try:
+        with training.staged_output(tmp_path / "a" / "run") as staging:
+            (staging / "heartpole.json").write_text("{}")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a" / "run").stat().st_mode & 0o777 == 0o750  # was 0o700 (mkdtemp's)
+    assert (tmp_path / "a").stat().st_mode & 0o777 == 0o750
+
+
+def test_output_under_a_file_or_from_a_missing_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
     assert_error(
-        run(capsys, "plot", "episode", "--policy", "expert", "--out", str(missing / "e.png")), "plot", "does not exist"
+        run(capsys, "plot", "episode", "--policy", "expert", "--out", str(blocker / "e.png")), "plot", "is a file"
     )
-    assert_error(
-        run(capsys, "record", "--policy", "expert", "--out", str(missing / "e.mp4")), "record", "does not exist"
-    )
-    assert_error(run(capsys, "plot", "model", "--out", str(missing / "figures")), "plot", "does not exist")
-    assert_error(run(capsys, "plot", "training", str(missing)), "plot", "no such folder")
-    assert not (tmp_path / "no").exists()
+    assert_error(run(capsys, "plot", "model", "--out", str(blocker)), "plot", "is a file, expected a folder")
+    assert_error(run(capsys, "plot", "training", str(tmp_path / "missing")), "plot", "no such folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
 
 
 def test_output_without_permission(

@@ -188,3 +188,19 @@ def test_unsupported_video_type_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="unsupported video type"):
         plots.write_video(iter([]), tmp_path / "x.avi")
     assert not list(tmp_path.iterdir())
+
+
+def test_gymnasiums_record_video_works_with_the_plot_extra(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    pytest.importorskip("moviepy")  # RecordVideo's writer, installed by the plot extra
+    env = gym.make("HeartPole-v0", render_mode="rgb_array", max_steps=12, max_episode_steps=12)
+    folder = tmp_path / "videos"
+    env = gym.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda episode: True, disable_logger=True)
+    env.reset(seed=0)
+    truncated = False
+    while not truncated:
+        *_, truncated, _ = env.step(env.action_space.sample())
+    env.close()
+    videos = list(folder.glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000

@@ -208,6 +208,8 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     vec = VecNormalize(DummyVecEnv([heartpole.HeartPole]), clip_obs=2.0)
     vec.obs_rms.mean, vec.obs_rms.var = np.array([1.0, 0.0, 0.0, 20.0, 500.0, 100.0]), np.full(6, 9.0)
     vec.save(str(normalized / "vecnormalize.pkl"))
+    record = {"algo": "ppo", "model": "m.zip", "vecnormalize": "vecnormalize.pkl"}
+    (normalized / "heartpole.json").write_text(json.dumps(record))
     paths["normalized"] = normalized / "m.zip"
     return paths
 
@@ -224,15 +226,60 @@ def test_models_load_with_their_algorithm_and_act_deterministically(models: dict
     np.testing.assert_array_equal(policy(obs), expected)
 
 
-def test_vecnormalize_beside_the_model_is_applied(models: dict[str, Path]) -> None:
+def test_vecnormalize_recorded_with_the_model_is_applied(models: dict[str, Path]) -> None:
     import stable_baselines3 as sb3
 
     policy = load_policy(str(models["normalized"]))
+    assert policy.normalizer_path == models["normalized"].parent / "vecnormalize.pkl"
     obs = np.random.default_rng(1).normal(0, 30, (64, 6)).astype(np.float32)
     mean = np.array([1.0, 0.0, 0.0, 20.0, 500.0, 100.0])
     normalized = np.clip((obs - mean) / np.sqrt(9.0 + 1e-8), -2.0, 2.0).astype(np.float32)
     expected, _ = sb3.PPO.load(models["normalized"]).predict(normalized, deterministic=True)
     np.testing.assert_array_equal(policy(obs), expected)
+
+
+def _copy_model(models: dict[str, Path], folder: Path, record: dict | None) -> Path:
+    folder.mkdir()
+    (folder / "m.zip").write_bytes(models["normalized"].read_bytes())
+    (folder / "vecnormalize.pkl").write_bytes((models["normalized"].parent / "vecnormalize.pkl").read_bytes())
+    if record is not None:
+        (folder / "heartpole.json").write_text(json.dumps(record))
+    return folder / "m.zip"
+
+
+@pytest.mark.parametrize(
+    "record",
+    [None, {"algo": "ppo"}, {"algo": "ppo", "model": "m.zip", "vecnormalize": None},
+     {"algo": "ppo", "model": "other.zip", "vecnormalize": "vecnormalize.pkl"},
+     {"algo": "ppo", "model": "m.zip", "model_sha256": "0" * 64, "vecnormalize": "vecnormalize.pkl"}],
+    ids=["no-record", "no-entry", "recorded-none", "another-model", "changed-model"],
+)  # fmt: skip
+def test_vecnormalize_not_recorded_for_the_model_is_ignored_with_a_warning(models, tmp_path, record) -> None:
+    import stable_baselines3 as sb3
+
+    path = _copy_model(models, tmp_path / "run", record)
+    with pytest.warns(UserWarning, match=r"ignoring .*vecnormalize.pkl: the model m.zip"):
+        policy = load_policy(str(path))
+    assert policy.normalizer_path is None
+    obs = np.random.default_rng(1).normal(0, 30, (64, 6)).astype(np.float32)
+    expected, _ = sb3.PPO.load(path).predict(obs, deterministic=True)
+    np.testing.assert_array_equal(policy(obs), expected)
+
+
+def test_recorded_vecnormalize_that_changed_or_vanished_is_refused(models, tmp_path) -> None:
+    from heartpole.policies import file_sha256
+
+    path = _copy_model(models, tmp_path / "run", None)
+    record = {"algo": "ppo", "model": "m.zip", "vecnormalize": "vecnormalize.pkl", "vecnormalize_sha256": "0" * 64}
+    (tmp_path / "run" / "heartpole.json").write_text(json.dumps(record))
+    with pytest.raises(ValueError, match="changed since it was saved with m.zip"):
+        load_policy(str(path))
+    record["vecnormalize_sha256"] = file_sha256(tmp_path / "run" / "vecnormalize.pkl")
+    (tmp_path / "run" / "heartpole.json").write_text(json.dumps(record))
+    assert load_policy(str(path)).normalizer_path is not None
+    (tmp_path / "run" / "vecnormalize.pkl").unlink()
+    with pytest.raises(ValueError, match=r"observation statistics .* are missing"):
+        load_policy(str(path))
 
 
 def test_a_model_for_another_env_is_refused(models: dict[str, Path]) -> None:
@@ -248,7 +295,54 @@ def test_a_truncated_model_file_is_refused(models: dict[str, Path], tmp_path: Pa
     with pytest.raises(ValueError, match="broken.zip"):
         load_policy(str(broken))
     (tmp_path / "vecnormalize.pkl").write_bytes(b"garbage")
+    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "ppo", "vecnormalize": "vecnormalize.pkl"}))
     healthy = tmp_path / "healthy.zip"
     healthy.write_bytes(data)
     with pytest.raises(ValueError, match="not a VecNormalize file"):
         load_policy(str(healthy))
+
+
+def _expert_rate_over_whole_episodes(params, grid: int = 400) -> float:
+    """expert_rate's fixed point computed the direct way, over arrays of the whole episode's length."""
+    from heartpole.model import alertness_decay, productivity
+
+    low, high = params.wake_alertness
+    wake = low + (high - low) * (np.arange(grid) + 0.5) / grid
+    horizon = params.max_steps
+    decay = np.concatenate([[0.0], np.cumsum(alertness_decay(np.arange(horizon - 1, dtype=np.float64)))])
+    earned = productivity(wake[:, None] - decay[None, :], 0.0)
+    rate = 0.0
+    for _ in range(200):
+        working = earned >= rate
+        working[:, 0] = True
+        length = np.where(working.all(axis=1), horizon, np.argmin(working, axis=1))
+        work = np.where(np.arange(horizon)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
+        days = horizon / length.mean()
+        new_rate = days * work.mean() / (horizon + params.sleep_half_hours * max(days - 1.0, 0.0))
+        if abs(new_rate - rate) < 1e-12:
+            break
+        rate = new_rate
+    return float(rate)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [Params(), Params(max_steps=1), Params(max_steps=2), Params(max_steps=20), Params(max_steps=3000),
+     Params(wake_alertness=(4.0, 9.0)), Params(wake_alertness=(-1.0, -0.5)), Params(sleep_half_hours=0)],
+    ids=lambda p: f"{p.max_steps}-{p.wake_alertness}-{p.sleep_half_hours}",
+)  # fmt: skip
+def test_expert_rate_equals_the_whole_episode_computation(params) -> None:
+    assert expert_rate(params) == _expert_rate_over_whole_episodes(params)
+
+
+def test_expert_rate_memory_does_not_grow_with_the_episode_length() -> None:
+    import tracemalloc
+
+    peaks = []
+    for max_steps in (1_000, 1_000_000):
+        expert_rate.cache_clear()
+        tracemalloc.start()
+        expert_rate(Params(max_steps=max_steps))
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert peaks[1] < 2 * peaks[0] + 1_000_000, peaks  # was 400 x max_steps float64 arrays: 3.2 GB each

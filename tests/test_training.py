@@ -20,6 +20,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 torch = pytest.importorskip("torch")
 
+from stable_baselines3.common.monitor import Monitor  # noqa: E402
+
 import heartpole  # noqa: E402
 from heartpole import training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
@@ -111,10 +113,40 @@ def test_adapter_answers_vecenv_queries() -> None:
     assert venv.get_attr("max_steps") == [1000, 1000]
     assert venv.get_attr("max_steps", indices=1) == [1000]
     assert venv.env_is_wrapped(gym.Wrapper) == [False, False]
+    assert venv.env_is_wrapped(Monitor) == [True, True]  # it reports episodes as Monitor does
     assert venv.render_mode is None
     with pytest.raises(IndexError, match="out of range for 2 envs"):
         venv.get_attr("max_steps", indices=[5])
     venv.close()
+
+
+class _AlwaysCoffee:
+    """A stand-in model for SB3's evaluate_policy: drinks coffee in every env."""
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=False):
+        return np.ones(len(obs), dtype=np.int64), state
+
+
+@pytest.mark.parametrize("normalized", [False, True])
+def test_sb3_evaluate_policy_sees_the_envs_true_return(normalized: bool) -> None:
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    venv = training.make_vec_env(
+        n_envs=4, seed=3, reward=SHAPED_REWARD, env_kwargs={"max_steps": 30}, normalize_rewards=normalized
+    )
+    returns, lengths = evaluate_policy(_AlwaysCoffee(), venv, n_eval_episodes=8, return_episode_rewards=True)
+    assert lengths == [30] * 8
+    # the same episodes, stepped by hand: the env's own rewards summed, and the shaped ones
+    env = HeartPoleSB3VecEnv(num_envs=4, reward=SHAPED_REWARD, env_kwargs={"max_steps": 30})
+    env.seed(3)
+    env.reset()
+    shaped = np.zeros(4)
+    for _ in range(30):
+        _, reward, _, infos = env.step(np.ones(4, dtype=np.int64))
+        shaped += reward
+    true = np.array([info["episode"]["r"] for info in infos])
+    assert np.allclose(sorted(returns[:4]), sorted(true))
+    assert not np.allclose(sorted(returns[:4]), sorted(shaped))
 
 
 def test_adapter_env_method_calls_nothing_for_no_indices() -> None:
@@ -141,7 +173,9 @@ def test_vecmonitor_and_sb3_logger_read_the_episodes() -> None:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor
 
-    venv = VecMonitor(HeartPoleSB3VecEnv(num_envs=2, env_kwargs={"max_steps": 50}))
+    # SB3 warns that the adapter already reports episodes as Monitor does (VecMonitor is not needed)
+    with pytest.warns(UserWarning, match="already wrapped with a `Monitor`"):
+        venv = VecMonitor(HeartPoleSB3VecEnv(num_envs=2, env_kwargs={"max_steps": 50}))
     model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(256)  # two rollouts of 64 steps x 2 envs: 128 steps per env, two episodes each
     assert len(model.ep_info_buffer) == 4
@@ -248,6 +282,51 @@ def test_default_preset_is_ppo_on_the_shaped_reward() -> None:
     assert preset_config(algo="dqn").hyperparameters["gamma"] == 0.95
 
 
+def test_default_preset_on_a_variant_uses_the_variants_rate() -> None:
+    assert preset_config(env_id="HeartPole-v1").reward.score_rate == 0.68  # 98% of v1's best, 0.69
+    assert preset_config(env_id="HeartPole-v1", score_rate="auto").reward.score_rate == "auto"
+    assert preset_config(env_id="HeartPole-v1", score_rate=0.5).reward.score_rate == 0.5
+    assert preset_config(score_rate="best").reward == SHAPED_REWARD  # v0: its tuned 0.32
+    heartpole.register_variant("AwakeTrainPole-v0", actions=heartpole.V0_ACTIONS[:3])
+    try:  # no sleep: no known best, so the rate is estimated while training
+        assert preset_config(env_id="AwakeTrainPole-v0").reward.score_rate == "auto"
+    finally:
+        gym.registry.pop("AwakeTrainPole-v0")
+        heartpole.registry._variants.discard("AwakeTrainPole-v0")
+    with pytest.raises(ValueError, match="no score rate"):
+        preset_config("tutorial", score_rate="auto")
+
+
+def test_runs_are_judged_against_their_own_envs_bar() -> None:
+    evaluation = {"mean_return": -124.5, "ci95": [-130.0, -119.0], "expected_return": -124.5,
+                  "expected_ci95": [-124.6, -124.4], "heart_attacks_per_episode": 1.25, "score": 0.45,
+                  "drinks_per_episode": 0.0, "sleeps_per_episode": 60.0}  # fmt: skip
+    v0 = training.run_summary(preset_config(), evaluation, 1.0, 1.0)
+    v1 = training.run_summary(preset_config(env_id="HeartPole-v1"), evaluation, 1.0, 1.0)
+    assert v0["solved"] and v0["solved_bar"]["score_at_least"] == 0.30
+    assert not v1["solved"] and v1["solved_bar"]["score_at_least"] == 0.63  # v1's best score is 0.69
+
+
+def test_train_command_exposes_the_score_rate(tmp_path: Path) -> None:
+    import argparse
+
+    from heartpole.cli.common import CommandError
+    from heartpole.cli.train import build_config
+
+    def args(**kw) -> argparse.Namespace:
+        base = {"preset": "default", "algo": None, "env": "HeartPole-v1", "timesteps": None, "n_envs": None,
+                "seed": "0", "score_rate": "best"}  # fmt: skip
+        return argparse.Namespace(**{**base, **kw})
+
+    assert build_config(args()).reward.score_rate == 0.68
+    assert build_config(args(score_rate="auto")).reward.score_rate == "auto"
+    assert build_config(args(score_rate="0.4")).reward.score_rate == 0.4
+    with pytest.raises(CommandError, match="--score-rate takes best, auto or a number"):
+        build_config(args(score_rate="fast"))
+    with pytest.raises(CommandError, match="applies to the default preset"):
+        build_config(args(preset="tutorial", score_rate="auto"))
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
@@ -295,6 +374,12 @@ def test_train_run_writes_files_that_load_and_act(tmp_path: Path, algo: str) -> 
     for name in RUN_FILES:
         assert (folder / name).is_file(), name
     sidecar = json.loads((folder / "heartpole.json").read_text())
+    from heartpole.policies import file_sha256
+
+    assert sidecar["model"] == "model.zip" and sidecar["model_sha256"] == file_sha256(folder / "model.zip")
+    assert sidecar["vecnormalize"] == "vecnormalize.pkl"
+    assert sidecar["vecnormalize_sha256"] == file_sha256(folder / "vecnormalize.pkl")
+    assert load_policy(str(folder / "model.zip")).normalizer_path == folder / "vecnormalize.pkl"
     assert (sidecar["algo"], sidecar["env_id"], sidecar["seed"], sidecar["timesteps"]) == (
         algo,
         "HeartPole-v0",
@@ -326,7 +411,7 @@ def test_loaded_policy_matches_the_trained_model(tmp_path: Path) -> None:
     trained = training.train_model(config)
     trained.model.save(tmp_path / "model.zip")
     trained.normalizer.save(str(tmp_path / "vecnormalize.pkl"))  # type: ignore[union-attr]
-    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "ppo"}))
+    (tmp_path / "heartpole.json").write_text(json.dumps({"algo": "ppo", "vecnormalize": "vecnormalize.pkl"}))
     obs = np.random.default_rng(0).uniform(0, [2, 3, 0.1, 40, 1500, 400], size=(256, 6)).astype(np.float32)
     expected, _ = trained.model.predict(trained.normalizer.normalize_obs(obs), deterministic=True)  # type: ignore[union-attr]
     np.testing.assert_array_equal(load_policy(str(tmp_path / "model.zip"))(obs), expected)

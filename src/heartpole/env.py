@@ -54,6 +54,23 @@ def build_dynamics(
     return Dynamics(params=params, **extra)
 
 
+def episode_length(max_steps: int | None, max_episode_steps: int | None, *, max_steps_wins: bool = False) -> int:
+    """The episode length from HeartPole's ``max_steps`` and Gymnasium's name for it, ``max_episode_steps``.
+
+    Either may be given (default 1000). Both given and different: ``ValueError``, or ``max_steps`` when
+    ``max_steps_wins`` (the vector env's case: ``gymnasium.make_vec`` passes the spec's
+    ``max_episode_steps`` along with the caller's ``max_steps``).
+    """
+    if max_steps is None:
+        return Params.max_steps if max_episode_steps is None else max_episode_steps
+    if max_episode_steps is not None and max_episode_steps != max_steps and not max_steps_wins:
+        raise ValueError(
+            f"max_steps={max_steps!r} and max_episode_steps={max_episode_steps!r} disagree; they are the same "
+            "number (the episode length), so give one of them"
+        )
+    return max_steps
+
+
 def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> None:
     """Raise ``ValueError`` unless ``render_mode`` is ``None`` or one of ``modes``."""
     if render_mode is not None and render_mode not in modes:
@@ -113,8 +130,16 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
     ## Episode End
     Nobody dies of HeartPole's heart attacks, so episodes never terminate. They are truncated after
-    ``max_steps`` decisions (1000 by default, the tutorial's ``done``). Stepping on after truncation
-    continues the same day with ``truncated=True``; call ``reset`` to start afresh.
+    ``max_steps`` decisions (1000 by default, the tutorial's ``done``); ``max_episode_steps`` is accepted as
+    Gymnasium's name for the same number. The registered spec's ``max_episode_steps`` is that number too,
+    so ``env.spec.max_episode_steps`` is an integer and ``gymnasium.make`` adds its ``TimeLimit`` wrapper
+    with the same limit. Change the length with ``gymnasium.make(id, max_steps=n, max_episode_steps=n)``
+    or a variant (:func:`heartpole.register_variant` with ``max_steps=n``): ``gymnasium.make`` hands its
+    own ``max_episode_steps`` to the ``TimeLimit`` wrapper only, never to the env, and builds that wrapper
+    from the registered spec when it is not given. ``gymnasium.make_vec`` passes it to the vector env,
+    which takes either name. Stepping on after truncation without the wrapper (the env made directly)
+    continues the same day with ``truncated=True`` on every step; through ``gymnasium.make``, Gymnasium's
+    ``OrderEnforcing`` and ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
 
     ## Info
     ``action`` (the action's name), ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the
@@ -159,14 +184,16 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     def __init__(
         self,
         heart_attack_proclivity: float = 0.5,
-        max_steps: int = 1000,
+        max_steps: int | None = None,
         render_mode: str | None = None,
         *,
         actions: Sequence[Action] | None = None,
         variables: Sequence[Variable] | None = None,
+        max_episode_steps: int | None = None,
         **model_params: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
+        max_steps = episode_length(max_steps, max_episode_steps)
         self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)

@@ -26,6 +26,7 @@ Built-ins (:data:`BUILTIN_POLICIES`): ``random``, ``nothing``, ``coffee``, ``ref
 from __future__ import annotations
 
 import functools
+import hashlib
 import json
 import pickle
 import sys
@@ -233,25 +234,48 @@ def expert_rate(params: Params, grid: int = 400) -> float:
     days and ``D / E[L] - 1`` sleeps, so its score is ``(D / E[L]) E[W] / (D + sleep (D / E[L] - 1))``.
     Iterating ``rate <- score(rate)`` from 0 converges to the best threshold (Dinkelbach's method), since a
     threshold equal to the score it achieves cannot be improved on. ``w`` is integrated on a midpoint grid.
+
+    Memory does not grow with ``max_steps``: the rate is never negative, and a day's work turns negative
+    (and so stops) once alertness is below 0, so only the half-hours up to then are computed.
     """
     low, high = params.wake_alertness
     wake = low + (high - low) * (np.arange(grid) + 0.5) / grid
     horizon = params.max_steps
-    decay = np.cumsum(alertness_decay(np.arange(horizon - 1, dtype=np.float64)))
-    alertness = np.concatenate([wake[:, None], wake[:, None] - decay[None, :]], axis=1)
-    earned = productivity(alertness, 0.0)
+    earned = productivity(_waking_alertness(wake, horizon), 0.0)
+    columns = earned.shape[1]  # < horizon: every day has ended by the last column
     rate = 0.0
     for _ in range(200):
         working = earned >= rate
         working[:, 0] = True  # the decision to sleep comes with the first half-hour of the new day
-        length = np.where(working.all(axis=1), horizon, np.argmin(working, axis=1))
-        work = np.where(np.arange(horizon)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
+        whole = working.all(axis=1)
+        length = np.where(whole, horizon, np.argmin(working, axis=1))
+        work = np.where(np.arange(columns)[None, :] < length[:, None], earned, 0.0).sum(axis=1)
         days = horizon / length.mean()
         new_rate = days * work.mean() / (horizon + params.sleep_half_hours * max(days - 1.0, 0.0))
         if abs(new_rate - rate) < 1e-12:
             break
         rate = new_rate
     return float(rate)
+
+
+def _waking_alertness(wake: np.ndarray, horizon: int, block: int = 64) -> np.ndarray:
+    """Alertness over a day for each waking alertness in ``wake``: ``(len(wake), columns)``.
+
+    ``columns`` is ``horizon``, or fewer: up to the first half-hour after waking at which every day's
+    alertness is below 0 (productivity is negative from there on, and alertness only falls).
+    """
+    decay: list[np.ndarray] = [np.zeros(1)]
+    total, start = 0.0, 0
+    while start < horizon - 1 and (start == 0 or total <= wake.max()):
+        steps = np.arange(start, min(start + block, horizon - 1), dtype=np.float64)
+        part = total + np.cumsum(alertness_decay(steps))
+        decay.append(part)
+        total, start = float(part[-1]), start + len(steps)
+        block *= 2
+    cumulative = np.concatenate(decay)
+    if total > wake.max():  # cut just after the first half-hour at which every day is below 0
+        cumulative = cumulative[: max(int(np.argmax(cumulative > wake.max())) + 1, 2)]
+    return wake[:, None] - cumulative[None, :]
 
 
 BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
@@ -287,9 +311,10 @@ def load_policy(
     """A built-in policy by name, or a Stable-Baselines3 model (a ``.zip`` saved by ``heartpole train``).
 
     For a model, the algorithm is read from a ``heartpole.json`` beside the zip (``{"algo": "ppo"}``) or
-    else from the policy class recorded in the zip; a ``vecnormalize.pkl`` beside the zip (saved by
-    ``VecNormalize.save``) normalises observations with its stored statistics. The model then acts
-    deterministically. Model files are pickles: load only files you trust.
+    else from the policy class recorded in the zip. Observations are normalised only with the
+    ``VecNormalize`` statistics that ``heartpole.json`` records as saved with this model (see
+    :func:`recorded_normalizer`); the returned policy's ``normalizer_path`` names them. The model then
+    acts deterministically. Model files are pickles: load only files you trust.
 
     Args:
         spec: a name in :data:`BUILTIN_POLICIES` or a path to a model ``.zip``.
@@ -380,6 +405,7 @@ class ModelPolicy:
         self.model = model
         self.name = name
         self.normalization = _normalization(normalizer)
+        self.normalizer_path: Path | None = None  # the file the statistics came from, when loaded from one
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """Observations as the model saw them in training (VecNormalize's formula), float32."""
@@ -438,9 +464,81 @@ def load_model_policy(path: str | Path, dynamics: Dynamics | None = None) -> Mod
     algo = detect_algorithm(path)
     model = _load_model(path, algo)
     _check_spaces(path, model, dynamics or _v0_dynamics())
-    normalizer_path = path.parent / VECNORMALIZE_NAME
-    normalizer = _load_normalizer(normalizer_path) if normalizer_path.is_file() else None
-    return ModelPolicy(model, normalizer, name=str(path))
+    normalizer_path = recorded_normalizer(path)
+    normalizer = _load_normalizer(normalizer_path) if normalizer_path is not None else None
+    policy = ModelPolicy(model, normalizer, name=str(path))
+    policy.normalizer_path = normalizer_path
+    return policy
+
+
+def recorded_normalizer(path: str | Path) -> Path | None:
+    """The ``VecNormalize`` file saved with the model at ``path``, as its ``heartpole.json`` records it.
+
+    ``heartpole train`` writes ``heartpole.json`` beside the model with ``"model"`` (the zip's name) and
+    ``"vecnormalize"`` (the statistics' file name, or ``null``), each with its SHA-256. Only a file recorded
+    there for this model is applied; a ``vecnormalize.pkl`` that merely lies beside the model is ignored,
+    with a warning. For a model of your own, write ``{"algo": "ppo", "model": "my.zip", "vecnormalize":
+    "my_vecnormalize.pkl"}`` beside it.
+
+    Raises:
+        ValueError: the record names statistics that are missing or were changed since they were saved.
+    """
+    path = Path(path)
+    record = _sidecar_record(path)
+    beside = path.parent / VECNORMALIZE_NAME
+    if record is None or record.get("vecnormalize") is None:
+        if beside.is_file():
+            why = "records no statistics for it" if record is not None else f"has no {SIDECAR_NAME} recording them"
+            warnings.warn(
+                f"ignoring {beside}: the model {path.name} {why}, so they may belong to another model. If they "
+                f'are this model\'s, record them beside it in {SIDECAR_NAME}: {{"model": "{path.name}", '
+                f'"vecnormalize": "{VECNORMALIZE_NAME}"}}',
+                UserWarning,
+                stacklevel=3,
+            )
+        return None
+    name = record["vecnormalize"]
+    if not isinstance(name, str) or Path(name).name != name:
+        raise ValueError(
+            f"{path.parent / SIDECAR_NAME}: 'vecnormalize' must be a file name beside the model, got {name!r}"
+        )
+    statistics = path.parent / name
+    if not statistics.is_file():
+        raise ValueError(f"{path}: its observation statistics {statistics} (recorded in {SIDECAR_NAME}) are missing")
+    digest = record.get("vecnormalize_sha256")
+    if digest is not None and file_sha256(statistics) != digest:
+        raise ValueError(
+            f"{statistics} changed since it was saved with {path.name} (its SHA-256 differs from the record)"
+        )
+    return statistics
+
+
+def file_sha256(path: str | Path) -> str:
+    """The SHA-256 of a file's bytes, in hex."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _sidecar_record(path: Path) -> dict[str, Any] | None:
+    """``heartpole.json`` beside the model if it describes this model (by name and, if recorded, SHA-256)."""
+    sidecar = path.parent / SIDECAR_NAME
+    if not sidecar.is_file():
+        return None
+    try:
+        record = json.loads(sidecar.read_text())
+    except (OSError, ValueError):
+        return None  # detect_algorithm reports an unreadable sidecar
+    if not isinstance(record, dict) or "vecnormalize" not in record:
+        return None
+    if record.get("model", path.name) != path.name:
+        return None  # the record of another model in the same folder
+    digest = record.get("model_sha256")
+    if digest is not None and file_sha256(path) != digest:
+        return None
+    return record
 
 
 def detect_algorithm(path: str | Path) -> str:

@@ -22,19 +22,18 @@ from __future__ import annotations
 
 import math
 import re
-import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.envs.registration import EnvSpec
+from gymnasium.envs.registration import EnvSpec, parse_env_id
 
 from heartpole.actions import V0_ACTIONS, Action, as_action
-from heartpole.dynamics import BOOKKEEPING
+from heartpole.dynamics import BOOKKEEPING, Dynamics
 from heartpole.env import build_dynamics
-from heartpole.model import V0_VARIABLES, Params, Variable
+from heartpole.model import V0_VARIABLES, Params, Variable, heart_attack_risk
 
 V0_ID = "HeartPole-v0"
 V1_ID = "HeartPole-v1"
@@ -46,6 +45,12 @@ _BUILTINS = {
     V0_ID: (ENTRY_POINT, VECTOR_ENTRY_POINT),
     V1_ID: ("heartpole.variants:HeartPoleV1", "heartpole.variants:HeartPoleV1VectorEnv"),
 }
+RESERVED_NAME = "HeartPole"
+"""HeartPole's own name: ``HeartPole-vN`` ids are HeartPole's versions, never users' variants."""
+
+# The solved bars of v0 and v1 as :func:`solved_bar` computes them (a test checks they agree), written out
+# so that ``import heartpole`` registers them without solving anything.
+BUILTIN_REWARD_THRESHOLDS = {V0_ID: -129.7, V1_ID: -129.37}
 
 MAX_REST_HALF_HOURS = 48
 """The longest rest an action may take (a day): each rest half-hour is computed every step."""
@@ -75,14 +80,66 @@ _variants: set[str] = set()
 def register_envs() -> None:
     """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered.
 
-    Gymnasium reads a higher version number as a successor and warns on every ``make("HeartPole-v0")``
-    that v0 "is out of date". Here v1 is a richer variant (the tutorial's homework), not a replacement:
-    v0 stays the reference benchmark. So that one notice, about this id only, is filtered out.
+    Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
+    (:func:`solved_bar`). Gymnasium reads v1 as v0's successor and so warns, once per calling line, that
+    ``HeartPole-v0`` "is out of date"; v1 is a richer variant, v0 stays the reference benchmark. Gymnasium
+    offers no per-id way to say so, and a package must not change the process's warning filters, so the
+    notice stands (silence it in your own code if you wish; see the README).
     """
     for env_id, (entry_point, vector_entry_point) in _BUILTINS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=entry_point, vector_entry_point=vector_entry_point)
-    warnings.filterwarnings("ignore", r".*The environment HeartPole-v0 is out of date", DeprecationWarning)
+            gym.register(
+                id=env_id,
+                entry_point=entry_point,
+                vector_entry_point=vector_entry_point,
+                max_episode_steps=Params.max_steps,
+                reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id],
+            )
+
+
+@dataclass(frozen=True)
+class SolvedBar:
+    """When a HeartPole env counts as solved: few heart attacks and a score close to the best known.
+
+    Attributes:
+        heart_attacks_at_most: heart attacks per episode: 5% above the unavoidable floor, the risk at zero
+            blood pressure over ``max_steps`` steps (1.30 for v0).
+        score_at_least: final score: 92% of the best known long-run rate (the ``expert`` policy's: 0.30 for
+            v0, 0.63 for v1); ``None`` when no rate is known (a variant without ``do_nothing`` and
+            ``sleep``).
+        reward_threshold: the return of an episode exactly at both bars, Gymnasium's ``reward_threshold``.
+    """
+
+    heart_attacks_at_most: float
+    score_at_least: float | None
+    reward_threshold: float
+
+
+SOLVED_ATTACKS_ABOVE_FLOOR = 1.05
+SOLVED_SHARE_OF_BEST_SCORE = 0.92
+
+
+def best_known_rate(dynamics: Dynamics) -> float | None:
+    """The best long-run score known for ``dynamics``: the ``expert`` policy's rate (0.327 for v0, 0.69 for
+    v1), or ``None`` for a variant without the ``do_nothing`` and ``sleep`` actions the expert needs."""
+    from heartpole.policies import ExpertPolicy
+
+    try:
+        return ExpertPolicy(dynamics).rate
+    except ValueError:
+        return None
+
+
+def solved_bar(dynamics: Dynamics) -> SolvedBar:
+    """The solved bar of the env with ``dynamics``: v0's issue-3 bar (<= 1.30 heart attacks, score >= 0.30)
+    carried over to any variant by the same proportions (see :class:`SolvedBar`)."""
+    params = dynamics.params
+    floor = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
+    attacks = round(SOLVED_ATTACKS_ABOVE_FLOOR * floor, 2)
+    best_rate = best_known_rate(dynamics)
+    score = None if best_rate is None else round(SOLVED_SHARE_OF_BEST_SCORE * best_rate, 2)
+    threshold = round((score or 0.0) - params.heart_attack_penalty * attacks, 6)
+    return SolvedBar(attacks, score, threshold)
 
 
 def register_variant(
@@ -129,13 +186,20 @@ def register_variant(
         proclivity = model_params.pop("heart_attack_proclivity", Params.heart_attack_proclivity)
         max_steps = model_params.pop("max_steps", Params.max_steps)
         # The env's own constructor path: what passes here builds every env of the variant.
-        build_dynamics(proclivity, max_steps, action_set, variable_set, model_params)
+        dynamics = build_dynamics(proclivity, max_steps, action_set, variable_set, model_params)
     except ValueError as error:
         raise ValueError(f"HeartPole variant {id!r}: {error}") from None
     kwargs: dict[str, Any] = {"actions": action_set, "variables": variable_set, **params}
     replaced = gym.registry.pop(id, None)  # only a variant of ours, when replacing
     try:
-        gym.register(id=id, entry_point=ENTRY_POINT, vector_entry_point=VECTOR_ENTRY_POINT, kwargs=kwargs)
+        gym.register(
+            id=id,
+            entry_point=ENTRY_POINT,
+            vector_entry_point=VECTOR_ENTRY_POINT,
+            kwargs=kwargs,
+            max_episode_steps=int(max_steps),
+            reward_threshold=solved_bar(dynamics).reward_threshold,
+        )
     except gym.error.Error as error:  # Gymnasium's own version rules, e.g. "Name" and "Name-v0" together
         if replaced is not None:
             gym.registry[id] = replaced
@@ -159,6 +223,12 @@ def _check_id(env_id: Any, replace: bool) -> None:
         raise ValueError(f"replace must be True or False, got {replace!r}")
     if env_id in BUILTIN_IDS:
         raise ValueError(f"{env_id!r} is built into HeartPole and cannot be redefined; give your variant its own id")
+    namespace, name, _ = parse_env_id(env_id)
+    if namespace is None and name == RESERVED_NAME:
+        raise ValueError(
+            f"{env_id!r}: '{RESERVED_NAME}-vN' ids are reserved for HeartPole's own versions (Gymnasium would "
+            f"take a higher one for v0's successor); give your variant its own name, e.g. 'MyPole-v0'"
+        )
     if env_id in gym.registry and not (replace and env_id in _variants):
         name, version = env_id.rsplit("-v", 1)
         hint = "pass replace=True to redefine it" if env_id in _variants else "it is not a HeartPole variant"
@@ -272,6 +342,11 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
     for name, where in _MAKE_TIME.items():
         if name in params:
             raise ValueError(f"{name} is chosen when making the env, not when defining a variant: pass it to {where}")
+    if "max_episode_steps" in params:
+        raise ValueError(
+            "a variant's episode length is max_steps (its spec's max_episode_steps is set from it); "
+            f"pass max_steps={params['max_episode_steps']!r}"
+        )
     unknown = sorted(set(params) - set(PARAMETERS))
     if unknown:
         raise ValueError(

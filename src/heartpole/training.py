@@ -75,6 +75,7 @@ TRAIN_EXTRA = "pip install 'heartpole[train]'"
 try:
     from stable_baselines3.common.base_class import BaseAlgorithm
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import VecEnv, VecNormalize
     from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 except ImportError as error:  # pragma: no cover - `heartpole train` checks for the modules first
@@ -90,9 +91,14 @@ SUMMARY_FILE = "summary.json"
 CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 
 SOLVED_HEART_ATTACKS = 1.30
-"""Issue 3's bar: at most this many heart attacks per episode over 2,000 evaluation episodes ..."""
+"""Issue 3's bar for HeartPole-v0: at most this many heart attacks per episode over 2,000 evaluation
+episodes ..."""
 SOLVED_SCORE = 0.30
-"""... and at least this final productivity score."""
+"""... and at least this final productivity score. Other envs have their own bar,
+:func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+RATE_SHARE_OF_BEST = 0.98
+"""The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
+0.68 for v1."""
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -336,8 +342,14 @@ class HeartPoleSB3VecEnv(VecEnv):
         return [result for _ in chosen]
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
-        """Always ``False``: the native vector env wraps no single envs."""
-        return [False for _ in self._indices(indices)]
+        """``True`` for SB3's ``Monitor`` only: each env reports its episodes as ``Monitor`` would.
+
+        SB3's ``evaluate_policy`` (and so ``EvalCallback``) reads ``info["episode"]["r"]``, the env's true
+        return, only when it is told the envs are ``Monitor``-wrapped; otherwise it sums the rewards it is
+        given, here the training reward. The native vector env wraps no single envs in anything else.
+        """
+        monitored = wrapper_class is Monitor
+        return [monitored for _ in self._indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         """One RGB frame per env when made with ``render_mode="rgb_array"``."""
@@ -571,13 +583,20 @@ DEFAULT_ALGO = {"default": "ppo", "tutorial": "dqn"}
 DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
 
 
-def preset_config(preset: str = "default", algo: str | None = None, **overrides: Any) -> TrainConfig:
+def preset_config(
+    preset: str = "default", algo: str | None = None, *, score_rate: float | str = "best", **overrides: Any
+) -> TrainConfig:
     """The :class:`TrainConfig` of ``preset`` for ``algo`` (default: the preset's own), with ``overrides``.
 
     ``default`` trains on the shaped reward with VecNormalize and 16 envs, with the hyperparameters of
     :data:`DEFAULT_HYPERPARAMETERS`; PPO is the one that solves HeartPole-v0. ``tutorial`` is the
     tutorial's run: SB3's default hyperparameters, ``net_arch=[16, 16]``, the env's reward, no
     normalisation, one env and 500,000 timesteps (DQN unless ``algo`` says otherwise).
+
+    ``score_rate`` is the shaped reward's rate (default preset only): ``"best"`` (default) is
+    :data:`RATE_SHARE_OF_BEST` of the trained env's best known score (0.32 for v0, 0.68 for v1; see
+    :func:`heartpole.registry.best_known_rate`), or ``"auto"`` where none is known; ``"auto"`` estimates
+    it while training; a number fixes it.
 
     Raises:
         ValueError: an unknown preset or algorithm, or a bad override.
@@ -588,6 +607,8 @@ def preset_config(preset: str = "default", algo: str | None = None, **overrides:
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
     if preset == "tutorial":
+        if score_rate != "best":
+            raise ValueError("the tutorial preset trains on the env's own reward, which has no score rate")
         base = TrainConfig(
             algo=algo,
             preset=preset,
@@ -600,9 +621,44 @@ def preset_config(preset: str = "default", algo: str | None = None, **overrides:
             normalize_rewards=False,
             reward_stats_window=None,
         )
-    else:
-        base = TrainConfig(algo=algo, preset=preset, hyperparameters=dict(DEFAULT_HYPERPARAMETERS[algo]))
-    return replace(base, **overrides)
+        return replace(base, **overrides)
+    base = TrainConfig(algo=algo, preset=preset, hyperparameters=dict(DEFAULT_HYPERPARAMETERS[algo]))
+    config = replace(base, **overrides)
+    if "reward" not in overrides:
+        rate = shaped_reward_rate(config.env_id, config.env_kwargs, score_rate)
+        config = replace(config, reward=replace(SHAPED_REWARD, score_rate=rate))
+    return config
+
+
+def shaped_reward_rate(env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best") -> float | str:
+    """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
+    from heartpole.policies import env_dynamics
+    from heartpole.registry import best_known_rate
+
+    if score_rate == "auto":
+        return "auto"
+    if score_rate == "best":
+        best = best_known_rate(env_dynamics(env_id, env_kwargs))
+        return "auto" if best is None else round(RATE_SHARE_OF_BEST * best, 2)
+    number = isinstance(score_rate, (int, float)) and not isinstance(score_rate, bool) and math.isfinite(score_rate)
+    if not number:
+        raise ValueError(f"score_rate must be 'best', 'auto' or a finite number, got {score_rate!r}")
+    return float(score_rate)
+
+
+def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The solved bar of ``env_id`` (:func:`heartpole.registry.solved_bar`) as a JSON-safe dict."""
+    from heartpole.policies import env_dynamics
+    from heartpole.registry import solved_bar
+
+    bar = solved_bar(env_dynamics(env_id, env_kwargs))
+    return {"heart_attacks_per_episode_at_most": bar.heart_attacks_at_most, "score_at_least": bar.score_at_least}
+
+
+def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
+    """Whether an evaluation's heart attacks and score meet ``bar`` (from :func:`env_solved_bar`)."""
+    score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
+    return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -697,6 +753,8 @@ def train_run(
     if trained.normalizer is not None:
         trained.normalizer.save(str(folder / VECNORMALIZE_FILE))
     write_curve(folder / CURVE_FILE, trained.curve)
+    from heartpole.policies import file_sha256
+
     sidecar = {
         "algo": config.algo,
         "env_id": config.env_id,
@@ -705,7 +763,11 @@ def train_run(
         "preset": config.preset,
         "policy": "MlpPolicy",
         "config": config.to_dict(),
+        "model": MODEL_FILE,
+        "model_sha256": file_sha256(folder / MODEL_FILE),
+        # the statistics saved with this model: load_policy applies these and no others
         "vecnormalize": VECNORMALIZE_FILE if trained.normalizer is not None else None,
+        "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_FILE) if trained.normalizer is not None else None,
         "train_seconds": round(trained.seconds, 2),
         "versions": _versions(),
     }
@@ -732,8 +794,9 @@ def train_run(
 def run_summary(
     config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float
 ) -> dict[str, Any]:
-    """One run's line in a summary: seed, evaluation figures, whether it meets the solved bar, timings."""
+    """One run's line in a summary: seed, evaluation figures, whether it meets its env's solved bar, timings."""
     heart_attacks, score = evaluation["heart_attacks_per_episode"], evaluation["score"]
+    bar = env_solved_bar(config.env_id, config.env_kwargs)
     return {
         "seed": config.seed,
         "mean_return": evaluation["mean_return"],
@@ -744,7 +807,8 @@ def run_summary(
         "score": score,
         "drinks_per_episode": evaluation["drinks_per_episode"],
         "sleeps_per_episode": evaluation["sleeps_per_episode"],
-        "solved": bool(heart_attacks <= SOLVED_HEART_ATTACKS and score >= SOLVED_SCORE),
+        "solved": meets_bar(evaluation, bar),
+        "solved_bar": bar,
         "train_seconds": round(train_seconds, 2),
         "wall_seconds": round(wall, 2),
     }
@@ -793,7 +857,7 @@ def train_seeds(
         "eval_seed": eval_seed,
         "runs": runs,
         "aggregate": aggregate(runs),
-        "solved_bar": {"heart_attacks_per_episode_at_most": SOLVED_HEART_ATTACKS, "score_at_least": SOLVED_SCORE},
+        "solved_bar": env_solved_bar(config.env_id, config.env_kwargs),
         "solved_seeds": sum(run["solved"] for run in runs),
     }
     _write_json(folder / SUMMARY_FILE, summary)
@@ -918,6 +982,7 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
+        os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes folders private; give the usual permissions
         yield staging
         check_output_folder(out, force)
         if out.exists():
@@ -935,6 +1000,12 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
             except OSError:
                 break
         raise
+
+
+def _umask() -> int:
+    current = os.umask(0)
+    os.umask(current)
+    return current
 
 
 def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:

@@ -120,7 +120,7 @@ class HeartPoleV1(HeartPole):
     def __init__(
         self,
         heart_attack_proclivity: float = 0.5,
-        max_steps: int = 1000,
+        max_steps: int | None = None,
         render_mode: str | None = None,
         **model_params: Any,
     ) -> None:
@@ -146,7 +146,7 @@ class HeartPoleV1VectorEnv(HeartPoleVectorEnv):
         self,
         num_envs: int = 1,
         heart_attack_proclivity: float = 0.5,
-        max_steps: int = 1000,
+        max_steps: int | None = None,
         render_mode: str | None = None,
         **kwargs: Any,
     ) -> None:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -14,7 +16,7 @@ from gymnasium.vector.utils import batch_space
 from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
-from heartpole.env import build_dynamics, check_render_mode, observation_space
+from heartpole.env import build_dynamics, check_render_mode, episode_length, observation_space
 from heartpole.model import Variable
 
 INFO_KEYS = ("action", "heart_attack", "heart_attack_risk", "productivity", "score")
@@ -46,6 +48,11 @@ class HeartPoleVectorEnv(VectorEnv):
     Stable-Baselines3's VecEnv expects).
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
+
+    Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
+    ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
+    ``env.spec.max_episode_steps`` reports the length the env truncates at.
+
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 8, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -54,12 +61,13 @@ class HeartPoleVectorEnv(VectorEnv):
         self,
         num_envs: int = 1,
         heart_attack_proclivity: float = 0.5,
-        max_steps: int = 1000,
+        max_steps: int | None = None,
         render_mode: str | None = None,
         *,
         actions: Sequence[Action] | None = None,
         variables: Sequence[Variable] | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        max_episode_steps: int | None = None,
         **model_params: Any,
     ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
@@ -68,6 +76,7 @@ class HeartPoleVectorEnv(VectorEnv):
         modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
         if AutoresetMode(autoreset_mode) not in modes:
             raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, got {autoreset_mode!r}")
+        max_steps = episode_length(max_steps, max_episode_steps, max_steps_wins=True)
         self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
         self.num_envs = int(num_envs)
         self.max_steps = int(max_steps)
@@ -86,6 +95,27 @@ class HeartPoleVectorEnv(VectorEnv):
         self._last_actions = np.full(self.num_envs, -1)
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The spec ``gymnasium.make_vec`` made this env from, its ``max_episode_steps`` this env's ``max_steps``."""
+        return self.__dict__.get("_spec")
+
+    @spec.setter
+    def spec(self, spec: EnvSpec | None) -> None:
+        # make_vec passes the registered max_episode_steps along with the caller's max_steps, which wins;
+        # a max_episode_steps the caller gave that disagrees with both is refused.
+        if spec is not None:
+            given = spec.kwargs.get("max_episode_steps", self.max_steps)
+            if given not in (self.max_steps, spec.max_episode_steps):
+                raise ValueError(
+                    f"max_steps={self.max_steps} and max_episode_steps={given} disagree; they are the same "
+                    "number (the episode length), so give one of them"
+                )
+            spec = copy.copy(spec)
+            spec.kwargs = {**spec.kwargs, "max_episode_steps": self.max_steps}
+            spec.max_episode_steps = self.max_steps
+        self.__dict__["_spec"] = spec
 
     @property
     def state(self) -> np.ndarray:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -11,6 +12,13 @@ from typing import Any
 
 class CommandError(Exception):
     """A problem the user can fix; printed as one line on stderr with exit code 2."""
+
+
+def tell_normalization(policy: Any) -> None:
+    """Say on stderr which saved observation statistics a loaded model applies, if any."""
+    path = getattr(policy, "normalizer_path", None)
+    if path is not None:
+        print(f"note: {policy.name} normalises observations with {path} (recorded with it)", file=sys.stderr)
 
 
 def positive_int(text: str) -> int:
@@ -74,38 +82,76 @@ def _is_number(text: str) -> bool:
         return False
 
 
-def writable_path(path: str | os.PathLike[str], suffixes: Sequence[str] | None = None) -> Path:
-    """Check that ``path`` can be written (its folder exists and is writable, its suffix accepted)."""
+def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence[str] | None = None) -> Path:
+    """Check, before any work, that the file ``path`` may be written; return it as a ``Path``.
+
+    Every command that writes behaves alike: missing folders are created (when written, by
+    :func:`atomic_write`), an existing file is replaced only with ``--force``, and files and folders get the
+    modes the umask gives.
+
+    Raises:
+        CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or no
+            permission to write where the file (or its first missing folder) would go.
+    """
     target = Path(path)
     if suffixes is not None and target.suffix.lower() not in suffixes:
         suffix = target.suffix or "(none)"
         raise CommandError(f"{target}: unsupported file type {suffix!r}; use one of {list(suffixes)}")
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise CommandError(f"{target}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise CommandError(f"{target}: no permission to write in {folder}")
     if target.is_dir():
         raise CommandError(f"{target} is a folder, expected a file path")
+    if target.exists() and not force:
+        raise CommandError(f"{target} exists; pass --force to replace it")
+    existing = _nearest_existing(target.parent)
+    if not existing.is_dir():
+        raise CommandError(f"{target}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK):
+        raise CommandError(f"{target}: no permission to write in {existing}")
     return target
 
 
-def _umask() -> int:
+def output_files(folder: str | os.PathLike[str], names: Sequence[str], *, force: bool) -> list[Path]:
+    """:func:`output_file` for each of ``names`` in ``folder`` (created when written if missing)."""
+    base = Path(folder)
+    if base.exists() and not base.is_dir():
+        raise CommandError(f"{base} is a file, expected a folder")
+    return [output_file(base / name, force=force) for name in names]
+
+
+def _nearest_existing(folder: Path) -> Path:
+    folder = folder if str(folder) else Path(".")
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return folder
+
+
+def umask() -> int:
+    """The process's umask (read without changing it for longer than the call)."""
     current = os.umask(0)
     os.umask(current)
     return current
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> Path:
-    """Call ``write(temporary_path)`` then move the result to ``path``; on failure nothing is left behind."""
-    target = writable_path(path)
+    """Call ``write(temporary_path)`` then move the result to ``path``; on failure nothing is left behind.
+
+    Missing folders on the way are created (with the umask's modes) and removed again if the write fails;
+    the file gets the umask's mode, as a file written by ``open`` would.
+    """
+    target = Path(path)
+    created = [p for p in [target.parent, *target.parent.parents] if str(p) and not p.exists()]
+    target.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=target.suffix)
     os.close(handle)
     try:
         write(Path(temporary))
-        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes files private; give the usual permissions
+        os.chmod(temporary, 0o666 & ~umask())  # mkstemp makes files private; give the usual permissions
         os.replace(temporary, target)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
+        for folder in created:  # nearest first; only folders this call made
+            try:
+                folder.rmdir()
+            except OSError:
+                break
         raise
     return target

@@ -18,9 +18,10 @@ from heartpole.cli.common import (
     atomic_write,
     format_table,
     markdown_table,
+    output_files,
     positive_int,
     seed_int,
-    writable_path,
+    tell_normalization,
 )
 from heartpole.progress import progress
 
@@ -85,6 +86,7 @@ def _register_baselines(subparsers: Any) -> None:
     parser.add_argument("--policy", action="append", default=[], metavar="P", help="an extra policy or model")
     _add_run_options(parser)
     parser.add_argument("--out", default="results", metavar="DIR", help="folder for baselines.md and .csv")
+    parser.add_argument("--force", action="store_true", help="replace existing files (missing folders are created)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of tables")
     parser.set_defaults(handler=run_baselines)
 
@@ -130,7 +132,7 @@ def run_baselines(args: argparse.Namespace) -> int:
     from heartpole.evaluation import rank
     from heartpole.policies import BUILTIN_POLICIES, load_policy
 
-    markdown_path, csv_path = _output_paths(args.out)
+    markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     for spec in extras:  # fail before the long run, not after it
         _library(lambda spec=spec: load_policy(spec, args.env))
@@ -152,12 +154,16 @@ def run_baselines(args: argparse.Namespace) -> int:
 def _evaluate(spec: str, args: argparse.Namespace) -> Any:
     """Evaluate ``spec`` with the run options of ``args``, a progress bar on stderr, errors as one line."""
     from heartpole.evaluation import evaluate
-    from heartpole.policies import env_dynamics
+    from heartpole.policies import BUILTIN_POLICIES, env_dynamics, load_policy
 
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
+    policy: Any = spec
+    if spec not in BUILTIN_POLICIES:  # a model: loaded here, so the user hears which statistics it applies
+        policy = _library(lambda: load_policy(spec, args.env))
+        tell_normalization(policy)
     with progress(args.episodes * max_steps, f"{spec}") as bar:
         return _library(
-            lambda: evaluate(spec, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
+            lambda: evaluate(policy, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
         )
 
 
@@ -172,15 +178,6 @@ def _library(call: Callable[[], T]) -> T:
 def _write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` (a writer for :func:`atomic_write`)."""
     path.write_text(text)
-
-
-def _output_paths(out: str) -> tuple[Path, Path]:
-    folder = Path(out)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise CommandError(f"cannot create output folder {folder}: {error.strerror or error}") from None
-    return writable_path(folder / "baselines.md"), writable_path(folder / "baselines.csv")
 
 
 # ------------------------------------------------------------------------------------------------------

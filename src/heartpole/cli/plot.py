@@ -15,7 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.cli.common import CommandError, atomic_write, positive_int, seed_int, writable_path
+from heartpole.cli.common import (
+    CommandError,
+    atomic_write,
+    output_file,
+    output_files,
+    positive_int,
+    seed_int,
+    tell_normalization,
+)
 from heartpole.progress import progress
 
 ORDER = 30
@@ -44,10 +52,10 @@ def _add_model(kinds: Any) -> None:
         help="the tutorial's curves and the productivity heat map",
         description="The tutorial's figures, drawn from heartpole.model: heart-attack risk vs hypertension, "
         "alertness decay vs half-hours since sleep, crippling anxiety vs alertness, the Ballmer function, "
-        "and productivity over alertness x intoxication. Writes one PNG each into DIR (created if its "
-        "parent exists).",
+        "and productivity over alertness x intoxication. Writes one PNG each into DIR (created if missing).",
     )
     parser.add_argument("--out", required=True, metavar="DIR", help="folder for the PNGs")
+    _add_force(parser)
     parser.set_defaults(handler=plot_model)
 
 
@@ -60,6 +68,7 @@ def _add_episode(kinds: Any) -> None:
     )
     _add_episode_options(parser)
     parser.add_argument("--out", required=True, metavar="FILE.png", help="the PNG to write")
+    _add_force(parser)
     parser.set_defaults(handler=plot_episode)
 
 
@@ -73,6 +82,7 @@ def _add_training(kinds: Any) -> None:
     )
     parser.add_argument("dir", metavar="DIR", help="the folder given to 'heartpole train --out'")
     parser.add_argument("--out", metavar="FILE.png", help="the PNG to write (default: DIR/learning_curve.png)")
+    _add_force(parser)
     parser.set_defaults(handler=plot_training)
 
 
@@ -87,7 +97,12 @@ def _add_record(subparsers: Any) -> None:
     _add_episode_options(parser)
     parser.add_argument("--fps", type=positive_int, default=8, help="frames (half-hour decisions) per second (8)")
     parser.add_argument("--out", required=True, metavar="FILE.mp4|FILE.gif", help="the video to write")
+    _add_force(parser)
     parser.set_defaults(handler=record)
+
+
+def _add_force(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--force", action="store_true", help="replace existing files (missing folders are created)")
 
 
 def _add_episode_options(parser: argparse.ArgumentParser) -> None:
@@ -123,9 +138,11 @@ def _policy(args: argparse.Namespace) -> Callable[[np.ndarray], Any]:
     from heartpole.policies import load_policy
 
     try:
-        return load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
+        policy = load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
     except (ValueError, FileNotFoundError) as error:
         raise CommandError(str(error)) from None
+    tell_normalization(policy)
+    return policy
 
 
 def _write_figure(figure: Any, path: Path, plots: Any) -> None:
@@ -133,31 +150,20 @@ def _write_figure(figure: Any, path: Path, plots: Any) -> None:
     print(f"wrote {path}")
 
 
-def _output_folder(text: str) -> Path:
-    """``--out DIR`` for several files: created if missing (not its parents), and writable."""
-    folder = Path(text)
-    if folder.exists() and not folder.is_dir():
-        raise CommandError(f"{folder} is a file, expected a folder")
-    if not folder.exists():
-        writable_path(folder)  # its parent exists and is writable
-        folder.mkdir()
-    return writable_path(folder / "figure.png").parent
-
-
 # --------------------------------------------------------------------------------------------------------
 def plot_model(args: argparse.Namespace) -> int:
     """``heartpole plot model --out DIR``: one PNG per model figure."""
     plots = _plots()
-    folder = _output_folder(args.out)
-    for stem, make in plots.MODEL_FIGURES.items():
-        _write_figure(make(plots.Params()), folder / f"{stem}.png", plots)
+    targets = output_files(args.out, [f"{stem}.png" for stem in plots.MODEL_FIGURES], force=args.force)
+    for make, target in zip(plots.MODEL_FIGURES.values(), targets):
+        _write_figure(make(plots.Params()), target, plots)
     return 0
 
 
 def plot_episode(args: argparse.Namespace) -> int:
     """``heartpole plot episode --policy P --out FILE.png``: one episode as a dashboard."""
     plots = _plots()
-    target = writable_path(args.out, suffixes=[".png"])
+    target = output_file(args.out, force=args.force, suffixes=[".png"])
     policy = _policy(args)
     trace = plots.trace_episode(policy, args.env, args.seed, **_env_kwargs(args))
     title = (
@@ -174,7 +180,7 @@ def plot_training(args: argparse.Namespace) -> int:
     folder = Path(args.dir)
     if not folder.is_dir():
         raise CommandError(f"{folder}: no such folder (give the folder of 'heartpole train --out')")
-    target = writable_path(args.out or folder / "learning_curve.png", suffixes=[".png"])
+    target = output_file(args.out or folder / "learning_curve.png", force=args.force, suffixes=[".png"])
     found = plots.find_learning_curves(folder)
     if not found:
         raise CommandError(
@@ -193,7 +199,7 @@ def record(args: argparse.Namespace) -> int:
     """``heartpole record --policy P --out FILE.mp4|.gif``: a video of one episode from its rgb_array frames."""
     from heartpole import plots
 
-    target = writable_path(args.out, suffixes=list(plots.VIDEO_SUFFIXES))
+    target = output_file(args.out, force=args.force, suffixes=list(plots.VIDEO_SUFFIXES))
     _check_video_writer(target.suffix.lower())
     policy = _policy(args)
     frames = plots.episode_frames(policy, args.env, args.seed, **_env_kwargs(args))
