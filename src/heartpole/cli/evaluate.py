@@ -128,13 +128,14 @@ def run_compare(args: argparse.Namespace) -> int:
 def run_baselines(args: argparse.Namespace) -> int:
     """``heartpole baselines``: every built-in and extra policy, printed and written as Markdown and CSV."""
     from heartpole.evaluation import rank
-    from heartpole.policies import BUILTIN_POLICIES, load_policy
+    from heartpole.policies import BUILTIN_POLICIES, available_builtins, load_policy
 
     markdown_path, csv_path = _output_paths(args.out)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     for spec in extras:  # fail before the long run, not after it
         _library(lambda spec=spec: load_policy(spec, args.env))
-    results = rank(_evaluate(spec, args) for spec in [*BUILTIN_POLICIES, *extras])
+    builtins = _library(lambda: available_builtins(args.env))
+    results = rank(_evaluate(spec, args) for spec in [*builtins, *extras])
     _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))
     _library(lambda: atomic_write(csv_path, lambda path: _write_text(path, baselines_csv(results))))
     if args.json:
