@@ -169,6 +169,7 @@ def test_variants_outside_the_solver_are_refused_with_the_reason() -> None:
         solve("HeartPole-v0", grid=1)
 
 
+@pytest.mark.slow
 def test_a_higher_proclivity_changes_the_heart_attacks_not_the_sleep_rule(v0: OptimumSolution) -> None:
     high = optimum("HeartPole-v0", {"heart_attack_proclivity": 0.8})
     assert high.expected_score == pytest.approx(v0.expected_score, abs=1e-12)
