@@ -198,3 +198,20 @@ def test_the_optimal_policy_needs_the_decisions_left() -> None:
         policy(obs)
     assert policy(obs, np.array([500])).tolist() == [heartpole.V0_ACTIONS.index(heartpole.actions.SLEEP)]
     assert policy(obs, np.array([2])).tolist() == [0]  # two decisions before the end a sleep cannot pay
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the command line
+
+
+def test_cli_solves_saves_and_explains_refusals(tmp_path, capsys, v0: OptimumSolution) -> None:
+    from heartpole.cli import main
+
+    assert main(["optimum", "--check", "0", "--out", str(tmp_path / "opt")]) == 0
+    out = capsys.readouterr().out
+    assert f"{v0.expected_return:.5f}" in out and "wrote" in out
+    assert OptimumSolution.load(tmp_path / "opt").expected_return == v0.expected_return
+    assert main(["optimum", "--env", "HeartPole-v1", "--check", "0"]) == 2
+    assert "HeartPole-v0's six" in capsys.readouterr().err
+    assert main(["optimum", "--param", "max_steps", "--check", "0"]) == 2
+    assert "NAME=VALUE" in capsys.readouterr().err
