@@ -336,7 +336,7 @@ def check_beer(params: Params) -> dict[str, float]:
             f"drinking may pay with these parameters: each drink costs at least {floor:.4g} of return "
             f"({charge:.4g} units of work at max_steps={params.max_steps}), but a beer may buy up to {beer:.4g}; "
             "the optimum covers variants where drinking provably never pays (for v0's other numbers: "
-            "max_steps >= 702 at heart_attack_proclivity 0.5, or proclivity >= 0.36 at max_steps 1000)"
+            "max_steps >= 701 at heart_attack_proclivity 0.5, or proclivity >= 0.36 at max_steps 1000)"
         )
     return {"floor": floor, "charge": charge, "beer_gain_bound": beer}
 
