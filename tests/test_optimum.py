@@ -215,3 +215,23 @@ def test_cli_solves_saves_and_explains_refusals(tmp_path, capsys, v0: OptimumSol
     assert "HeartPole-v0's six" in capsys.readouterr().err
     assert main(["optimum", "--param", "max_steps", "--check", "0"]) == 2
     assert "NAME=VALUE" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------------------
+# proclivity 0: drinking pays
+
+
+def test_without_heart_attack_risk_a_drinking_policy_far_outscores_the_no_drink_optimum(v0: OptimumSolution) -> None:
+    """A coarse, short grid DP (a lower bound, not the optimum) already scores well above 0.327 by drinking."""
+    from heartpole.optimum import solve_drinking
+    from heartpole.policies import env_dynamics
+
+    kwargs = {"heart_attack_proclivity": 0.0}
+    dynamics = env_dynamics("HeartPole-v0", kwargs)
+    solution = solve_drinking(dynamics.params, 1.0, sweeps=60, alertness_step=0.05, intoxication_step=0.004)
+    result = heartpole.evaluate(solution.policy(dynamics), episodes=200, seed=0, env_kwargs=kwargs)
+    assert result.score > 2 * v0.expected_score
+    assert result.drinks_per_episode > 100 and result.sleeps_per_episode > 0
+    assert math.isnan(result.regret)  # the solver does not certify an optimum here
+    with pytest.raises(NotCoveredError, match="proclivity=0"):
+        solve_drinking(Params(), 1.0, sweeps=1)

@@ -634,6 +634,163 @@ def _max_awake(params: Params) -> int:
 
 
 # ------------------------------------------------------------------------------------------------------
+# heart_attack_proclivity = 0: where drinking pays
+
+DRINKING_ACTIONS = ("do_nothing", "drink_coffee", "drink_beer", "sleep")
+
+
+@dataclass(frozen=True)
+class DrinkingSolution:
+    """A stationary grid policy for a variant without heart-attack risk, where coffee and beer pay.
+
+    Not a certified optimum: a lower bound (its score, measured through the evaluator) on what drinking
+    can reach. ``q`` holds the value of each action of :data:`DRINKING_ACTIONS` on the grid of
+    (alertness, intoxication, half-hours awake); the policy picks the best action by bilinear
+    interpolation of ``q`` in alertness and intoxication.
+    """
+
+    params: Params
+    rate: float
+    sweeps: int
+    alertness: np.ndarray = field(repr=False)
+    intoxication: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)  # (4, alertness, intoxication, awake) float32
+
+    def policy(self, dynamics: Any) -> Callable[[np.ndarray], np.ndarray]:
+        """This solution as a :data:`~heartpole.policies.Policy` for ``dynamics`` (v0's four actions)."""
+        return _DrinkingPolicy(self, [dynamics.action_index(name) for name in DRINKING_ACTIONS])
+
+
+class _DrinkingPolicy:
+    """The greedy action of a :class:`DrinkingSolution` at each observation."""
+
+    name = "drinking-dp"
+
+    def __init__(self, solution: DrinkingSolution, indices: list[int]) -> None:
+        self.solution = solution
+        self.indices = np.asarray(indices, dtype=np.int64)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        s = self.solution
+        a_grid, x_grid = s.alertness, s.intoxication
+        i, fi = _bracket((np.asarray(obs[:, 0], dtype=np.float64) - a_grid[0]) / (a_grid[1] - a_grid[0]), len(a_grid))
+        j, fj = _bracket(np.asarray(obs[:, 2], dtype=np.float64) / (x_grid[1] - x_grid[0]), len(x_grid))
+        k = np.clip(np.asarray(obs[:, 3]).astype(np.int64), 0, s.q.shape[3] - 1)
+        q = (
+            s.q[:, i, j, k] * ((1 - fi) * (1 - fj))
+            + s.q[:, i + 1, j, k] * (fi * (1 - fj))
+            + s.q[:, i, j + 1, k] * ((1 - fi) * fj)
+            + s.q[:, i + 1, j + 1, k] * (fi * fj)
+        )
+        return self.indices[np.argmax(q, axis=0)]
+
+
+def _bracket(position: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lower grid index and interpolation weight of fractional grid ``position`` s, clamped to the grid."""
+    position = np.clip(position, 0.0, size - 1 - 1e-9)
+    lower = np.floor(position).astype(np.int64)
+    return lower, position - lower
+
+
+def solve_drinking(
+    params: Params,
+    rate: float,
+    *,
+    sweeps: int = 300,
+    alertness_step: float = 0.025,
+    intoxication_step: float = 0.002,
+    alertness_range: tuple[float, float] = (-2.0, 5.0),
+    max_intoxication: float = 0.3,
+    max_awake: int = 90,
+) -> DrinkingSolution:
+    """Value iteration for ``E[work - rate * time]`` with free drinks (no heart-attack risk), on a grid.
+
+    The state is (alertness, intoxication, half-hours awake); hypertension is left out because it costs
+    nothing when ``heart_attack_proclivity * heart_attack_penalty == 0``. ``sweeps`` backward steps from 0
+    give the policy ``sweeps`` decisions before an end, used as a stationary policy. Coffee and beer are
+    averaged over their uniform effects by the trapezoid rule on the grid; the half-hour's fading and
+    alertness drain are bilinear interpolation. ``rate`` should be the score the policy reaches
+    (Dinkelbach): ``scripts/optimum_drinking.py`` iterates it through the evaluator. About 4 minutes with
+    the defaults on a busy 2-core machine.
+
+    Raises:
+        NotCoveredError: if heart attacks cost anything (use :func:`solve` there) or the action set is not v0's.
+    """
+    if params.heart_attack_proclivity * params.heart_attack_penalty != 0:
+        raise NotCoveredError("solve_drinking leaves hypertension out: it needs heart_attack_proclivity=0")
+    da, dx = alertness_step, intoxication_step
+    a = np.round(np.arange(alertness_range[0], alertness_range[1] + da / 2, da), 10)
+    x = np.round(np.arange(0.0, max_intoxication + dx / 2, dx), 10)
+    grids = _DrinkingGrids(params, a, x, max_awake)
+    value = np.zeros((len(a), len(x), max_awake + 1), dtype=np.float32)
+    for _ in range(sweeps):
+        q = grids.action_values(value, rate)
+        value[:, :, :max_awake] = q.max(axis=0)
+    return DrinkingSolution(params, float(rate), int(sweeps), a, x, q)
+
+
+class _DrinkingGrids:
+    """Precomputed interpolation weights and offsets of :func:`solve_drinking`'s grid."""
+
+    NEVER = -1e9  # the value of an action that leaves the grid (or of staying awake at max_awake)
+
+    def __init__(self, params: Params, a: np.ndarray, x: np.ndarray, awake: int) -> None:
+        da, dx = a[1] - a[0], x[1] - x[0]
+        self.awake, self.rest = awake, params.sleep_half_hours
+        self.work = productivity(a[:, None], x[None, :]).astype(np.float32)
+        drain = alertness_decay(np.arange(awake, dtype=np.float64))
+        self.fade = _single(_bracket(x * params.decay_rate / dx, len(x)))
+        self.fade_asleep = _single(_bracket(x * params.decay_rate**params.sleep_half_hours / dx, len(x)))
+        lower, weight = _bracket((a[:, None] - drain[None, :] - a[0]) / da, len(a))
+        self.drain = (lower[:, None, :], weight[:, None, :].astype(np.float32))
+        self.coffee = int(round(1.0 / da))  # grid points in a coffee's U(0, 1)
+        self.beer_a = int(round(0.5 / da))  # U(-0.5, 0)
+        self.beer_x = (int(round(0.01 / dx)), int(round(0.03 / dx)))  # U(0.01, 0.03)
+        low, high = params.wake_alertness
+        waking = ((a >= low - 1e-9) & (a <= high + 1e-9)).astype(np.float64)
+        if waking.sum() < 2:
+            raise NotCoveredError("the alertness grid is too coarse for the waking interval")
+        ends = np.flatnonzero(waking)[[0, -1]]
+        waking[ends] = 0.5  # the trapezoid rule over the waking interval
+        self.waking = (waking / waking.sum()).astype(np.float32)
+
+    def action_values(self, value: np.ndarray, rate: float) -> np.ndarray:
+        """``(4, alertness, intoxication, awake)``: each action's value, given the next decision's ``value``."""
+        lower_x, weight_x = self.fade
+        later = value[:, :, 1:]
+        faded = later[:, lower_x, :] * (1 - weight_x)[None, :, None]
+        faded += later[:, lower_x + 1, :] * weight_x[None, :, None]
+        lower_a, weight_a = self.drain
+        drained = np.take_along_axis(faded, lower_a, axis=0) * (1 - weight_a)
+        drained += np.take_along_axis(faded, lower_a + 1, axis=0) * weight_a
+        stay = self.work[:, :, None] - np.float32(rate) + drained  # the value after the action's effects
+        stay[:, :, self.awake - 1] = self.NEVER
+        coffee = _window_mean(stay, 0, 0, self.coffee)
+        beer = _window_mean(_window_mean(stay, 1, *self.beer_x), 0, -self.beer_a, 0)
+        lower_s, weight_s = self.fade_asleep
+        woken = stay[:, lower_s, 0] * (1 - weight_s) + stay[:, lower_s + 1, 0] * weight_s
+        sleep = self.waking @ woken - np.float32(rate * self.rest)
+        return np.stack([stay, coffee, beer, np.broadcast_to(sleep[None, :, None], stay.shape)])
+
+
+def _single(bracket: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """A bracket with float32 weights, so the float32 sweeps stay float32."""
+    return bracket[0], bracket[1].astype(np.float32)
+
+
+def _window_mean(values: np.ndarray, axis: int, start: int, stop: int) -> np.ndarray:
+    """Mean of ``values`` over grid offsets ``[start, stop]`` along ``axis`` (trapezoid rule); off-grid: NEVER."""
+    moved = np.moveaxis(values, axis, 0)
+    size = len(moved)
+    cumulative = np.concatenate([np.zeros_like(moved[:1]), np.cumsum((moved[1:] + moved[:-1]) * 0.5, axis=0)])
+    out = np.full_like(moved, _DrinkingGrids.NEVER)
+    first, last = max(0, -start), min(size, size - stop)
+    index = np.arange(first, last)
+    out[first:last] = (cumulative[index + stop] - cumulative[index + start]) / (stop - start)
+    return np.moveaxis(out, 0, axis)
+
+
+# ------------------------------------------------------------------------------------------------------
 # helpers
 
 
@@ -707,6 +864,8 @@ __all__ = [
     "check_coffee",
     "optimum",
     "optimum_for",
+    "DrinkingSolution",
+    "solve_drinking",
     "sleep_rule_value",
     "solve",
     "solve_params",
