@@ -28,7 +28,7 @@ from heartpole.progress import progress
 ORDER = 10
 
 POLICY_HELP = (
-    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
+    "a built-in policy (random, nothing, coffee, reference, expert, optimal) or the path of a model .zip saved by "
     "'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
 )
 PROTOCOL = (
