@@ -20,7 +20,6 @@ from heartpole.model import TIME_ELAPSED, TIME_SINCE_SLEPT, WORK_DONE, Params, p
 from heartpole.optimum import (
     NotCoveredError,
     OptimumSolution,
-    check_coffee,
     drink_floor,
     optimum,
     sleep_rule_value,
@@ -48,7 +47,7 @@ def test_v0_optimum_reproduces_the_reference_figures(v0: OptimumSolution) -> Non
 
 def test_the_drink_floor_is_the_issues_and_coffee_never_pays_on_v0(v0: OptimumSolution) -> None:
     assert drink_floor(Params()) == pytest.approx(0.01794, abs=1e-5)
-    assert check_coffee(Params(), v0.rate)["coffee_best_gain"] < -1.0  # units of work: clearly not worth it
+    assert v0.coffee_best_gain < -1.0  # units of work: clearly not worth it, in every state checked
 
 
 def test_far_from_the_end_it_sleeps_where_expert_does(v0: OptimumSolution) -> None:

@@ -58,7 +58,7 @@ import numpy as np
 from heartpole.actions import V0_ACTIONS
 from heartpole.model import V0_VARIABLES, Params, alertness_decay, ballmer, heart_attack_risk, productivity
 
-SOLVER_VERSION = 1
+SOLVER_VERSION = 2
 DEFAULT_GRID = 400
 MAX_DINKELBACH_ITERATIONS = 50
 
@@ -83,6 +83,8 @@ class OptimumSolution:
             midpoint rule converges as ``1/grid**2``, so the fine grid's error is about a third of it).
         expected_sleeps: mean sleeps per episode of the optimal policy.
         drink_floor: expected return each drink costs at least (:func:`drink_floor`).
+        coffee_best_gain: the most a coffee gains over the no-drink optimum in any state checked, in units of
+            work (:func:`coffee_check`; negative: coffee never pays).
         thresholds: ``(max_steps + 1, max_awake)`` alertness thresholds: with ``n`` decisions left and
             ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
     """
@@ -98,6 +100,7 @@ class OptimumSolution:
     error_bound: float
     expected_sleeps: float
     drink_floor: float
+    coffee_best_gain: float
     thresholds: np.ndarray = field(repr=False, compare=False)
 
     @property
@@ -127,6 +130,7 @@ class OptimumSolution:
             "error_bound": self.error_bound,
             "expected_sleeps": self.expected_sleeps,
             "drink_floor": self.drink_floor,
+            "coffee_best_gain": self.coffee_best_gain,
             "max_awake": self.max_awake,
             "solver_version": SOLVER_VERSION,
         }
@@ -167,6 +171,7 @@ class OptimumSolution:
                 grid=int(meta["grid"]),
                 expected_sleeps=float(meta["expected_sleeps"]),
                 drink_floor=float(meta["drink_floor"]),
+                coffee_best_gain=float(meta["coffee_best_gain"]),
                 thresholds=thresholds,
                 **{key: float(meta[key]) for key in fields},
             )
@@ -202,7 +207,7 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
 def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -> OptimumSolution:
     check_beer(params)
     fine = solve_params(params, grid)
-    check_coffee(params, fine.rate)
+    coffee = check_coffee(params, fine.rate)
     coarse = solve_params(params, grid // 2)
     attacks = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
     return OptimumSolution(
@@ -217,6 +222,7 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
         error_bound=abs(fine.expected_score - coarse.expected_score),
         expected_sleeps=fine.expected_sleeps,
         drink_floor=drink_floor(params),
+        coffee_best_gain=coffee["coffee_best_gain"],
         thresholds=fine.thresholds,
     )
 

@@ -125,6 +125,7 @@ def format_solution(solution: Any, checks: dict[str, Any]) -> str:
         ["sleeps / episode", f"{solution.expected_sleeps:.2f}", ""],
         ["Dinkelbach rate E[work] / E[time]", f"{solution.rate:.5f}", ""],
         ["each drink costs at least", f"{solution.drink_floor:.4f}", "of expected return"],
+        ["a coffee's best gain, any state", f"{solution.coffee_best_gain:.2f}", "units of work (< 0: never pays)"],
     ]
     for name, result in checks.items():
         regret = f"regret {result.regret:.5f} [{result.regret_ci95[0]:.5f}, {result.regret_ci95[1]:.5f}]"
