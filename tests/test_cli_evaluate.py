@@ -68,10 +68,13 @@ def test_baselines_writes_markdown_and_csv(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert "published Table 1" in result.stdout and "expert" in result.stdout
     markdown = (out / "baselines.md").read_text()
-    assert "| 1 | expert |" in markdown and "## Published Table 1" in markdown and "-84.96" in markdown
+    # 20 episodes cannot separate optimal from expert (0.00075 apart), but both lead the others
+    assert {"| 1 | optimal |" in markdown, "| 1 | expert |" in markdown} == {True, False}
+    assert "## Published Table 1" in markdown and "-84.96" in markdown
     rows = list(csv.DictReader((out / "baselines.csv").open()))
     ours = [row["policy"] for row in rows if row["source"] == "heartpole evaluate"]
-    assert ours[0] == "expert" and sorted(ours) == ["coffee", "expert", "nothing", "random", "reference"]
+    assert sorted(ours[:2]) == ["expert", "optimal"]
+    assert sorted(ours) == ["coffee", "expert", "nothing", "optimal", "random", "reference"]
     assert len([row for row in rows if row["source"] == "published Table 1"]) == 7
     umask = os.umask(0)
     os.umask(umask)

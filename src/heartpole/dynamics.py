@@ -63,11 +63,12 @@ class Dynamics:
 
 
 def step_tables(
-    actions: Sequence[Action], variables: Sequence[Variable], params: Params
+    actions: Sequence[Action], variables: Sequence[Variable], params: Params, number: type = np.float32
 ) -> tuple[tuple[ActionEffects, ...], StepTables]:
     """Each action's :class:`~heartpole.model.ActionEffects` and the variant's
-    :class:`~heartpole.model.StepTables`, in float32."""
-    f32 = np.float32
+    :class:`~heartpole.model.StepTables`, every number of type ``number`` (the envs' float32, or ``float``
+    to run :func:`heartpole.model.step` in float64)."""
+    f32 = number
     names = [v.name for v in variables]
     fade = [_fade(v, params) for v in variables]
     effects = []

@@ -241,9 +241,16 @@ class EpisodeTrace:
         return model.score(self.column("work_done"), self.column("time_elapsed"))
 
 
-def act(policy: Policy, observation: np.ndarray) -> int:
-    """The action ``policy`` chooses for one observation (policies work on batches)."""
-    return int(np.asarray(policy(observation[None].astype(np.float32))).reshape(-1)[0])
+def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = None) -> int:
+    """The action ``policy`` chooses for one observation (policies work on batches).
+
+    ``decisions_left`` goes to a policy that ``needs_decisions_left`` (see :mod:`heartpole.policies`).
+    """
+    from heartpole.policies import act_batch
+
+    batch = observation[None].astype(np.float32)
+    left = None if decisions_left is None else np.array([decisions_left], dtype=np.int64)
+    return int(np.asarray(act_batch(policy, batch, left)).reshape(-1)[0])
 
 
 def trace_episode(policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any) -> EpisodeTrace:
@@ -254,7 +261,7 @@ def trace_episode(policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, *
     states, actions, attacks, rewards = [observation], [], [], []
     truncated = terminated = False
     while not (truncated or terminated):
-        action = act(policy, observation)
+        action = act(policy, observation, int(core.max_steps) - len(actions))
         observation, reward, terminated, truncated, info = env.step(action)
         states.append(observation)
         actions.append(action)
@@ -513,9 +520,11 @@ def episode_frames(
     try:
         observation, _ = env.reset(seed=seed)
         yield env.render()
-        done = False
+        done, steps = False, 0
         while not done:
-            observation, _, terminated, truncated, _ = env.step(act(policy, observation))
+            left = int(env.unwrapped.max_steps) - steps
+            observation, _, terminated, truncated, _ = env.step(act(policy, observation, left))
+            steps += 1
             yield env.render()
             done = terminated or truncated
     finally:

@@ -18,9 +18,18 @@ read from the observation, so one policy object serves any number of envs and an
 Each built-in looks its action indices up by name in the env's :class:`~heartpole.dynamics.Dynamics`, so
 it keeps working in variants whose action set is larger than v0's.
 
-Built-ins (:data:`BUILTIN_POLICIES`): ``random``, ``nothing``, ``coffee``, ``reference`` and
-``expert``. :func:`load_policy` turns a built-in name or the path of a Stable-Baselines3 model saved by
-``heartpole train`` into a :data:`Policy`.
+Decisions left. A policy may also ask for the number of decisions left in each env's episode, which the
+observation does not show (``time_elapsed`` mixes work and sleep): a policy with a true attribute
+``needs_decisions_left`` is called as ``policy(obs, decisions_left)`` with an integer array ``(n,)``,
+``max_steps`` on the first decision and 1 on the last. Every loop in this package that runs policies
+(:func:`heartpole.evaluate` and friends, ``heartpole record``, ``heartpole plot episode``) calls them
+through :func:`act_batch`, which passes it; other loops must pass it too (the env counts decisions:
+``env.unwrapped.max_steps`` minus the steps taken since reset).
+
+Built-ins (:data:`BUILTIN_POLICIES`): ``random``, ``nothing``, ``coffee``, ``reference``, ``expert`` and
+``optimal`` (the solved optimum of :mod:`heartpole.optimum`, which needs the decisions left).
+:func:`load_policy` turns a built-in name or the path of a Stable-Baselines3 model saved by ``heartpole
+train`` into a :data:`Policy`.
 """
 
 from __future__ import annotations
@@ -278,14 +287,74 @@ def _waking_alertness(wake: np.ndarray, horizon: int, block: int = 64) -> np.nda
     return wake[:, None] - cumulative[None, :]
 
 
+class OptimalPolicy:
+    """``optimal``: the policy of :mod:`heartpole.optimum`'s dynamic program. Never drink; sleep when alertness
+    falls below a threshold that depends on the half-hours awake and the decisions left.
+
+    Far from the end it sleeps near the alertness where ``expert`` does; in the last days it re-times the
+    days so that the last one ends with the episode, and over the last few decisions it stays awake. It
+    needs the number of decisions left (``needs_decisions_left``): call it as ``policy(obs, decisions_left)``.
+    The solution is solved once per parameter set and cached (:func:`heartpole.optimum.optimum`).
+
+    Args:
+        dynamics: the env's dynamics (default: v0's); must be v0's actions and variables.
+        solution: a solved :class:`~heartpole.optimum.OptimumSolution` to act on (default: solve or load
+            the cached one for ``dynamics``).
+
+    Raises:
+        heartpole.optimum.NotCoveredError: a variant the solver does not cover.
+    """
+
+    name = "optimal"
+    needs_decisions_left = True
+
+    def __init__(self, dynamics: Dynamics | None = None, solution: Any = None) -> None:
+        from heartpole.optimum import optimum_for
+
+        dynamics = dynamics or _v0_dynamics()
+        self.solution = solution if solution is not None else optimum_for(dynamics)
+        self.nothing = dynamics.action_index("do_nothing")
+        self.sleep = dynamics.action_index("sleep")
+
+    def __call__(self, obs: np.ndarray, decisions_left: Any = None) -> np.ndarray:
+        obs = _observations(obs)
+        if decisions_left is None:
+            raise ValueError(
+                "the optimal policy needs the number of decisions left: call policy(obs, decisions_left) "
+                "(heartpole.policies.act_batch does it for loops that count steps)"
+            )
+        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
+        sleeps = self.solution.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
+        return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
+
+
+def act_batch(policy: Policy, obs: np.ndarray, decisions_left: Any) -> np.ndarray:
+    """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``."""
+    if getattr(policy, "needs_decisions_left", False):
+        return policy(obs, decisions_left)  # type: ignore[call-arg]
+    return policy(obs)
+
+
 BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
     "random": RandomPolicy,
     "nothing": nothing_policy,
     "coffee": coffee_policy,
     "reference": ReferencePolicy,
     "expert": ExpertPolicy,
+    "optimal": OptimalPolicy,
 }
 """The built-in policies by name; each entry builds the policy for a :class:`~heartpole.dynamics.Dynamics`."""
+
+
+def available_builtins(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> list[str]:
+    """The built-in policy names that can act in ``env_id``: all of them, but ``optimal`` only where
+    :mod:`heartpole.optimum` covers the variant (solving it once, cached)."""
+    from heartpole.optimum import available
+
+    names = list(BUILTIN_POLICIES)
+    if available(env_id, env_kwargs) is None:
+        names.remove("optimal")
+    return names
 
 
 def make_policy(name: str, dynamics: Dynamics | None = None, rng: np.random.Generator | int | None = None) -> Policy:

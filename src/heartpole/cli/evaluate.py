@@ -9,6 +9,7 @@ import argparse
 import csv
 import io
 import json
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -28,7 +29,7 @@ from heartpole.progress import progress
 ORDER = 10
 
 POLICY_HELP = (
-    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
+    "a built-in policy (random, nothing, coffee, reference, expert, optimal) or the path of a model .zip saved by "
     "'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
 )
 PROTOCOL = (
@@ -130,13 +131,14 @@ def run_compare(args: argparse.Namespace) -> int:
 def run_baselines(args: argparse.Namespace) -> int:
     """``heartpole baselines``: every built-in and extra policy, printed and written as Markdown and CSV."""
     from heartpole.evaluation import rank
-    from heartpole.policies import BUILTIN_POLICIES, load_policy
+    from heartpole.policies import BUILTIN_POLICIES, available_builtins, load_policy
 
     markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     for spec in extras:  # fail before the long run, not after it
         _library(lambda spec=spec: load_policy(spec, args.env))
-    results = rank(_evaluate(spec, args) for spec in [*BUILTIN_POLICIES, *extras])
+    builtins = _library(lambda: available_builtins(args.env))
+    results = rank(_evaluate(spec, args) for spec in [*builtins, *extras])
     _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))
     _library(lambda: atomic_write(csv_path, lambda path: _write_text(path, baselines_csv(results))))
     if args.json:
@@ -199,12 +201,26 @@ def format_result(result: Any) -> str:
         ["drinks / episode", f"{result.drinks_per_episode:.2f}", ""],
         ["sleeps / episode", f"{result.sleeps_per_episode:.2f}", ""],
     ]
+    if math.isfinite(result.regret):
+        rows.insert(1, ["regret (optimum - expected-risk return)", *_interval(result.regret, result.regret_ci95, 5)])
     header = (
         f"{result.policy} on {result.env_id}: {result.episodes} episodes of {result.max_steps} steps, "
         f"seed {result.seed} ({result.seconds:.1f} s)"
     )
-    note = f"the expected-risk interval is {result.width_ratio:.0f}x narrower than the realized one"
-    return "\n".join([header, format_table(["measure", "mean", "95% CI"], rows), note])
+    notes = [f"the expected-risk interval is {result.width_ratio:.0f}x narrower than the realized one"]
+    if result.solved is not None:
+        notes.append(_solved_line(result))
+    return "\n".join([header, format_table(["measure", "mean", "95% CI"], rows), *notes])
+
+
+def _solved_line(result: Any) -> str:
+    from heartpole.evaluation import SOLVED_REGRET
+
+    verdict = "solved" if result.solved else "not solved"
+    return (
+        f"optimum {result.optimal_return:.5f}; {verdict} by the regret bar "
+        f"(95% upper bound {result.regret_ci95[1]:.5f} <= {SOLVED_REGRET})"
+    )
 
 
 def format_comparison(comparison: Any) -> str:
@@ -230,6 +246,17 @@ def format_comparison(comparison: Any) -> str:
             " ".join(_interval(comparison.score_difference, comparison.score_ci95, 4)),
         ],
     ]
+    if math.isfinite(a.regret) and math.isfinite(b.regret):
+        low, high = comparison.expected_ci95
+        rows.insert(
+            1,
+            [
+                "regret",
+                " ".join(_interval(a.regret, a.regret_ci95, 5)),
+                " ".join(_interval(b.regret, b.regret_ci95, 5)),
+                " ".join(_interval(-comparison.expected_difference, (-high, -low), 5)),
+            ],
+        )
     half = [(ci[1] - ci[0]) / 2 for ci in (a.ci95, b.ci95, comparison.ci95)]
     header = (
         f"{a.policy} - {b.policy} on {a.env_id}: {a.episodes} paired episodes of {a.max_steps} steps, "
@@ -252,11 +279,28 @@ def format_baselines(results: Sequence[Any]) -> str:
         [
             f"{first.env_id}: {first.episodes} episodes of {first.max_steps} steps per policy, seed {first.seed}",
             format_table(*table_rows(results)),
+            *_optimal_note(results),
             "",
             "published Table 1 (HEALTHINF abstract, keras-rl, 20 test episodes)",
             format_table(*published_rows()),
         ]
     )
+
+
+def _optimal_note(results: Sequence[Any], markdown: bool = False) -> list[str]:
+    """``optimal`` minus ``expert`` with its paired interval, and the regret bar, if both were evaluated."""
+    from heartpole.evaluation import SOLVED_REGRET, Comparison, plus_minus
+
+    by_name = {result.policy: result for result in results}
+    if "optimal" not in by_name or "expert" not in by_name:
+        return []
+    pair = Comparison.of(by_name["optimal"], by_name["expert"])
+    lines = [
+        f"optimal - expert: {plus_minus(pair.expected_difference, pair.expected_ci95)} expected-risk return "
+        f"(paired 95% CI); regret = optimum {by_name['optimal'].optimal_return:.5f} minus the expected-risk "
+        f"return; solved: 95% upper bound of the regret <= {SOLVED_REGRET}"
+    ]
+    return ["", *lines] if markdown else lines
 
 
 def baselines_markdown(results: Sequence[Any]) -> str:
@@ -273,6 +317,7 @@ def baselines_markdown(results: Sequence[Any]) -> str:
             + " Ranked by the expected-risk return.",
             "",
             markdown_table(*table_rows(results)),
+            *_optimal_note(results, markdown=True),
             "",
             f"## Published Table 1 (HEALTHINF abstract, keras-rl, {PUBLISHED_EPISODES} test episodes)",
             "",
@@ -302,6 +347,9 @@ CSV_FIELDS = (
     "score",
     "drinks_per_episode",
     "sleeps_per_episode",
+    "regret",
+    "regret_ci95_low",
+    "regret_ci95_high",
 )
 
 
@@ -314,6 +362,7 @@ def baselines_csv(results: Sequence[Any]) -> str:
         row = result.to_dict()
         row["ci95_low"], row["ci95_high"] = row.pop("ci95")
         row["expected_ci95_low"], row["expected_ci95_high"] = row.pop("expected_ci95")
+        row["regret_ci95_low"], row["regret_ci95_high"] = row.pop("regret_ci95")
         writer.writerow({key: row.get(key) for key in CSV_FIELDS} | {"source": "heartpole evaluate"})
     for published in _published_dicts():
         writer.writerow({key: published.get(key) for key in CSV_FIELDS})

@@ -310,10 +310,10 @@ def _summary(game: Game, args: argparse.Namespace, seed: int, out: TextIO) -> No
 def _baseline_rows(env_id: str, steps: int, episodes: int, seed: int) -> list[list[str]]:
     """One row per built-in policy: expected return, realized return with its interval, heart attacks, score."""
     from heartpole.evaluation import evaluate
-    from heartpole.policies import BUILTIN_POLICIES, load_policy
+    from heartpole.policies import available_builtins, load_policy
 
     rows = []
-    for name in BUILTIN_POLICIES:
+    for name in available_builtins(env_id, {"max_steps": steps}):
         policy = load_policy(name, env_id, env_kwargs={"max_steps": steps}, rng=seed)
         result = evaluate(policy, env_id, episodes, seed, env_kwargs={"max_steps": steps})
         low, high = result.ci95

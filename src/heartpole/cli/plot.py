@@ -110,7 +110,8 @@ def _add_episode_options(parser: argparse.ArgumentParser) -> None:
         "--policy",
         required=True,
         metavar="P",
-        help="a built-in policy (random, nothing, coffee, reference, expert) or a model .zip from 'heartpole train'",
+        help="a built-in policy (random, nothing, coffee, reference, expert, optimal) "
+        "or a model .zip from 'heartpole train'",
     )
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (0)")
     parser.add_argument("--steps", type=positive_int, default=None, help="decisions in the episode (the env's, 1000)")

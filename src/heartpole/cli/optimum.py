@@ -1,0 +1,151 @@
+"""``heartpole optimum``: solve a variant's optimal policy by dynamic programming, check it, save it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from heartpole.cli.common import CommandError, format_table, positive_int, seed_int
+
+ORDER = 15
+
+DESCRIPTION = """\
+Solve the optimal policy of a HeartPole variant by dynamic programming and report its expected return,
+the ceiling every policy's regret is measured from.
+
+On HeartPole-v0 drinks never pay (each costs at least 0.018 of expected return through its own step's
+heart-attack risk, more than it can buy), so only the sleep timing is left: the solver's state is
+(decisions left, waking alertness, half-hours awake), the ratio work / time is handled by Dinkelbach's
+method, and the waking alertness is a midpoint grid (--grid). The error bound is the change of the
+expected return when the grid is halved; --check runs the `optimal` policy through the standard evaluator
+(expected-risk estimate, 95% interval) beside `expert` with common random numbers.
+
+Covered: HeartPole-v0's actions and variables with other parameters (--param), as long as drinking
+provably never pays (refused with the reason otherwise: HeartPole-v1, heart_attack_proclivity=0, short
+episodes). See docs/optimum.md."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``heartpole optimum``."""
+    parser = subparsers.add_parser(
+        "optimum",
+        help="solve the optimal policy by dynamic programming (the ceiling for regret)",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  heartpole optimum\n  heartpole optimum --param heart_attack_proclivity=0.8 --out opt/\n"
+        "  heartpole optimum --grid 800 --check 0 --json",
+    )
+    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="an env keyword argument, e.g. heart_attack_proclivity=0.8 or max_steps=2000 (repeatable; "
+        "values are read as JSON, so wake_alertness=[0.6,1.4] works)",
+    )
+    parser.add_argument("--out", metavar="DIR", help="save the solution there (optimum.json and optimum.npz)")
+    parser.add_argument(
+        "--grid", type=positive_int, default=None, metavar="N", help="waking-alertness grid points (default: 400)"
+    )
+    parser.add_argument(
+        "--check",
+        type=int,
+        default=2000,
+        metavar="EPISODES",
+        help="episodes of the Monte-Carlo check through the evaluator (default 2000; 0 skips it)",
+    )
+    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the Monte-Carlo check (default 0)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    parser.set_defaults(handler=run_optimum)
+
+
+def run_optimum(args: argparse.Namespace) -> int:
+    """Solve (or load from the cache), check, save and print."""
+    from heartpole import optimum
+
+    if args.check < 0:
+        raise CommandError(f"--check must be an integer >= 0, got {args.check}")
+    kwargs = _params(args.param)
+    print(f"solving {args.env}{' ' + str(kwargs) if kwargs else ''}...", file=sys.stderr, flush=True)
+    try:
+        if args.grid is None:
+            solution = optimum.optimum(args.env, kwargs)
+        else:
+            solution = optimum.solve(args.env, grid=args.grid, **kwargs)
+        if args.out:
+            solution.save(args.out)
+    except (ValueError, OSError) as error:
+        raise CommandError(" ".join(str(error).split())) from None
+    checks = _check(args, kwargs) if args.check else {}
+    if args.json:
+        print(json.dumps({**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}))
+    else:
+        print(format_solution(solution, checks))
+        if args.out:
+            print(f"\nwrote {args.out}/optimum.json and optimum.npz")
+    return 0
+
+
+def _params(items: list[str]) -> dict[str, Any]:
+    params: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise CommandError(f"--param takes NAME=VALUE, e.g. max_steps=2000; got {item!r}")
+        try:
+            value = json.loads(text)
+        except ValueError:
+            raise CommandError(f"--param {name}: {text!r} is not a number or JSON value") from None
+        params[name] = tuple(value) if isinstance(value, list) else value
+    return params
+
+
+def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, Any]:
+    from heartpole.evaluation import evaluate
+    from heartpole.progress import progress
+
+    results = {}
+    for policy in ("optimal", "expert"):
+        steps = args.check * int(kwargs.get("max_steps", 1000))
+        with progress(steps, f"checking {policy}") as bar:
+            results[policy] = evaluate(policy, args.env, args.check, args.seed, env_kwargs=kwargs, progress=bar.update)
+    return results
+
+
+def format_solution(solution: Any, checks: dict[str, Any]) -> str:
+    """The solution's figures as a table, with the Monte-Carlo check if run."""
+    p = solution.params
+    rows = [
+        ["expected return (optimum)", f"{solution.expected_return:.5f}", f"+- {solution.error_bound:.1e} (grid)"],
+        ["expected score (work / time)", f"{solution.expected_score:.5f}", ""],
+        ["expected heart attacks / episode", f"{solution.expected_heart_attacks:.5f}", "the floor: never drink"],
+        ["sleeps / episode", f"{solution.expected_sleeps:.2f}", ""],
+        ["Dinkelbach rate E[work] / E[time]", f"{solution.rate:.5f}", ""],
+        ["each drink costs at least", f"{solution.drink_floor:.4f}", "of expected return"],
+        ["a coffee's best gain, any state", f"{solution.coffee_best_gain:.2f}", "units of work (< 0: never pays)"],
+    ]
+    for name, result in checks.items():
+        regret = f"regret {result.regret:.5f} [{result.regret_ci95[0]:.5f}, {result.regret_ci95[1]:.5f}]"
+        low, high = result.expected_ci95
+        interval = f"[{low:.5f}, {high:.5f}]; {regret}"
+        rows.append([f"{name} through the evaluator", f"{result.expected_return:.5f}", interval])
+    header = (
+        f"{solution.env_id}{' ' + str(solution.env_kwargs) if solution.env_kwargs else ''}: {p.max_steps} decisions, "
+        f"proclivity "
+        f"{p.heart_attack_proclivity:g}, sleep {p.sleep_half_hours} half-hours, grid {solution.grid}"
+    )
+    lines = [header, format_table(["measure", "value", "note"], rows)]
+    if "optimal" in checks:
+        result = checks["optimal"]
+        inside = result.expected_ci95[0] - solution.error_bound <= solution.expected_return
+        inside &= solution.expected_return <= result.expected_ci95[1] + solution.error_bound
+        lines.append(
+            f"the evaluator's 95% interval for `optimal` ({result.episodes} episodes, seed {result.seed}) "
+            + ("contains" if inside else "does NOT contain")
+            + " the solver's value"
+        )
+    return "\n".join(lines)
+
