@@ -64,12 +64,30 @@ def tutorial_step(state: dict[str, float], action: int, u: list[float]) -> tuple
 
 
 STATES = [
-    {"alertness": 1.1, "hypertension": 0.2, "intoxication": 0.0, "time_since_slept": 3.0, "time_elapsed": 3.0,
-     "work_done": 2.5},
-    {"alertness": 0.3, "hypertension": 5.5, "intoxication": 0.13, "time_since_slept": 45.0,
-     "time_elapsed": 300.0, "work_done": 95.0},
-    {"alertness": 2.9, "hypertension": 7.0, "intoxication": 0.06, "time_since_slept": 0.0, "time_elapsed": 0.0,
-     "work_done": 0.0},
+    {
+        "alertness": 1.1,
+        "hypertension": 0.2,
+        "intoxication": 0.0,
+        "time_since_slept": 3.0,
+        "time_elapsed": 3.0,
+        "work_done": 2.5,
+    },
+    {
+        "alertness": 0.3,
+        "hypertension": 5.5,
+        "intoxication": 0.13,
+        "time_since_slept": 45.0,
+        "time_elapsed": 300.0,
+        "work_done": 95.0,
+    },
+    {
+        "alertness": 2.9,
+        "hypertension": 7.0,
+        "intoxication": 0.06,
+        "time_since_slept": 0.0,
+        "time_elapsed": 0.0,
+        "work_done": 0.0,
+    },
 ]
 UNIFORMS = [[0.25, 0.5, 0.75, 0.1, 0.2, 0.3, 0.9, 0.999], [0.9, 0.1, 0.4, 0.5, 0.5, 0.5, 0.05, 0.0001]]
 
@@ -99,10 +117,12 @@ def test_the_compiled_float32_step_follows_the_python_step(action) -> None:
         s = (*state.values(), 0.4)
         u = [*u[:6], 0.3, *u[6:]]
         python = model.step(s, dynamics.effects[action], u, dynamics.tables)
-        compiled = kernel.compiled.step(tuple(f32(x) for x in s), dynamics.effects[action],
-                                        tuple(f32(x) for x in u), dynamics.tables)
-        np.testing.assert_allclose(np.array(compiled[0], dtype=float), np.array(python[0], dtype=float),
-                                   rtol=2e-6, atol=2e-5)
+        compiled = kernel.compiled.step(
+            tuple(f32(x) for x in s), dynamics.effects[action], tuple(f32(x) for x in u), dynamics.tables
+        )
+        np.testing.assert_allclose(
+            np.array(compiled[0], dtype=float), np.array(python[0], dtype=float), rtol=2e-6, atol=2e-5
+        )
         for got, want in zip(compiled[1:], python[1:]):
             assert float(got) == pytest.approx(float(want), rel=2e-6, abs=2e-5)
 
@@ -221,8 +241,11 @@ def test_the_dynamics_live_in_model_step_only() -> None:
         assert getattr(kernel.compiled, name).py_func.__code__.co_code == getattr(model, name).__code__.co_code
     formula_constants = {0.135, 0.005, 0.05, 40.0, 50.0, 0.97}
     for module in (kernel, dynamics, env, vector):
-        numbers = {node.value for node in ast.walk(ast.parse(inspect.getsource(module)))
-                   if isinstance(node, ast.Constant) and type(node.value) in (int, float)}
+        numbers = {
+            node.value
+            for node in ast.walk(ast.parse(inspect.getsource(module)))
+            if isinstance(node, ast.Constant) and type(node.value) in (int, float)
+        }
         assert not numbers & formula_constants, f"{module.__name__} holds {numbers & formula_constants}"
 
 
@@ -238,7 +261,9 @@ print(obs.tobytes().hex(), truncated)
 
 def test_everything_runs_without_numba_compiling(tmp_path) -> None:
     """With NUMBA_DISABLE_JIT=1 the same code runs as plain Python, slowly, to the same observations."""
-    run = lambda extra: subprocess.run(  # noqa: E731
-        [sys.executable, "-c", NO_JIT], capture_output=True, text=True, check=True, env={**os.environ, **extra}
-    ).stdout
+    run = lambda extra: (
+        subprocess.run(  # noqa: E731
+            [sys.executable, "-c", NO_JIT], capture_output=True, text=True, check=True, env={**os.environ, **extra}
+        ).stdout
+    )
     assert run({"NUMBA_DISABLE_JIT": "1"}) == run({}) != ""

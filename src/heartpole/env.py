@@ -253,8 +253,13 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         name = self._action_names[index]
         if self.render_mode is not None:
             self._remember(name, attack)
-        info = {"action": name, "heart_attack": attack, "heart_attack_risk": risk, "productivity": worked,
-                "score": new_score}
+        info = {
+            "action": name,
+            "heart_attack": attack,
+            "heart_attack_risk": risk,
+            "productivity": worked,
+            "score": new_score,
+        }
         return state.copy(), reward, False, self._steps >= self.max_steps, info
 
     def render(self) -> str | np.ndarray | None:

@@ -285,7 +285,6 @@ class Variable:
         return params.decay_rate if self.decay == "params" else self.decay
 
 
-
 V0_VARIABLES: tuple[Variable, ...] = (
     Variable("alertness", description="sleepy (low) vs alert (high); wakes up near 1"),
     Variable("hypertension", 0.0, decay="params", description="blood pressure above normal"),

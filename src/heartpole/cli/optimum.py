@@ -148,4 +148,3 @@ def format_solution(solution: Any, checks: dict[str, Any]) -> str:
             + " the solver's value"
         )
     return "\n".join(lines)
-
