@@ -261,9 +261,11 @@ print(obs.tobytes().hex(), truncated)
 
 def test_everything_runs_without_numba_compiling(tmp_path) -> None:
     """With NUMBA_DISABLE_JIT=1 the same code runs as plain Python, slowly, to the same observations."""
-    run = lambda extra: (
-        subprocess.run(  # noqa: E731
-            [sys.executable, "-c", NO_JIT], capture_output=True, text=True, check=True, env={**os.environ, **extra}
+
+    def run(extra: dict[str, str]) -> str:
+        environment = {**os.environ, **extra}
+        return subprocess.run(
+            [sys.executable, "-c", NO_JIT], capture_output=True, text=True, check=True, env=environment
         ).stdout
-    )
+
     assert run({"NUMBA_DISABLE_JIT": "1"}) == run({}) != ""

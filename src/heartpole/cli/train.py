@@ -267,16 +267,27 @@ def format_run(run: dict[str, Any]) -> str:
     verdict = ("solved" if run["solved"] else "not solved") + (
         f" ({describe_bar(run['solved_bar'])})" if "solved_bar" in run else ""
     )
+    regret = "" if run.get("regret") is None else f"regret {format_regret(run)}, "
     return (
         f"seed {run['seed']}: heart attacks {run['heart_attacks_per_episode']:.3f}/episode, "
         f"score {run['score']:.4f}, return {run['mean_return']:.2f} [{low:.2f}, {high:.2f}], "
-        f"expected-risk return {run['expected_return']:.3f}, "
+        f"expected-risk return {run['expected_return']:.3f}, {regret}"
         f"{run['train_seconds']:.0f} s training, {run['wall_seconds']:.0f} s in all: {verdict}"
     )
 
 
+def format_regret(run: dict[str, Any]) -> str:
+    """A run's regret with its 95% interval, or ``-`` where no optimum is known."""
+    if run.get("regret") is None:
+        return "-"
+    low, high = run["regret_ci95"]
+    return f"{run['regret']:.4f} [{low:.4f}, {high:.4f}]"
+
+
 def describe_bar(bar: dict[str, Any]) -> str:
-    """A solved bar in words: ``heart attacks <= 1.30, score >= 0.30``."""
+    """A solved bar in words: ``regret <= 0.01 (95% upper bound)`` or ``heart attacks <= 1.30, score >= 0.30``."""
+    if "regret_at_most" in bar:
+        return f"regret <= {bar['regret_at_most']:g} (95% upper bound)"
     text = f"heart attacks <= {bar['heart_attacks_per_episode_at_most']:.2f}"
     return text if bar["score_at_least"] is None else f"{text}, score >= {bar['score_at_least']:.2f}"
 
@@ -285,7 +296,16 @@ def format_summary(summary: dict[str, Any]) -> str:
     """Every seed's row, then the interquartile mean across seeds with its 95% bootstrap interval."""
     from heartpole.training import aggregate_figures
 
-    headers = ["seed", "heart attacks/ep", "score", "return", "return 95% CI", "expected-risk return", "s", "solved"]
+    headers = [
+        "seed",
+        "heart attacks/ep",
+        "score",
+        "return",
+        "return 95% CI",
+        "expected-risk return",
+        "regret [95% CI]",
+    ]
+    headers += ["s", "solved"]
     rows = [
         [
             run["seed"],
@@ -294,6 +314,7 @@ def format_summary(summary: dict[str, Any]) -> str:
             f"{run['mean_return']:.2f}",
             f"[{run['ci95'][0]:.2f}, {run['ci95'][1]:.2f}]",
             f"{run['expected_return']:.3f}",
+            format_regret(run),
             f"{run['wall_seconds']:.0f}",
             "yes" if run["solved"] else "no",
         ]
