@@ -1,7 +1,7 @@
-"""Regenerate the README's seeded tables from the code, so the documented figures cannot drift.
+"""Regenerate the documented seeded tables from the code, so the documented figures cannot drift.
 
-Each table is written to ``docs/tables/<name>.md`` and, where README.md holds the markers
-``<!-- table:<name> -->`` and ``<!-- /table:<name> -->``, between them. Tables:
+Each table is written to ``docs/tables/<name>.md`` and, wherever README.md or a page of ``docs/`` holds
+the markers ``<!-- table:<name> -->`` and ``<!-- /table:<name> -->``, between them. Tables:
 
 * ``baselines-v0`` and ``baselines-v1``: ``heartpole baselines`` on HeartPole-v0 / v1 (2,000 episodes,
   seed 0): every built-in policy, ranked by the expected-risk return;
@@ -13,7 +13,7 @@ Each table is written to ``docs/tables/<name>.md`` and, where README.md holds th
 Usage::
 
     python scripts/readme_tables.py                 # regenerate (about a minute on 2 cores)
-    python scripts/readme_tables.py --check         # exit 1 if README.md or docs/tables/ is out of date
+    python scripts/readme_tables.py --check         # exit 1 if README.md or docs/ is out of date
     python scripts/readme_tables.py --training runs/solve     # after python benchmarks/solve.py
 """
 
@@ -113,6 +113,11 @@ def with_tables(text: str, tables: dict[str, str]) -> str:
     return text
 
 
+def marked_pages() -> list[Path]:
+    """README.md and the documentation's pages: where tables may be marked."""
+    return [README, *sorted((ROOT / "docs").glob("*.md"))]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if anything is out of date")
@@ -123,7 +128,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.filterwarnings("ignore", ".*HeartPole-v0 is out of date", DeprecationWarning)  # this script's own
     tables = generate(args.training)
     outputs = {TABLES / f"{name}.md": table for name, table in tables.items()}
-    outputs[README] = with_tables(README.read_text(), tables)
+    for page in marked_pages():
+        outputs[page] = with_tables(page.read_text(), tables)
     stale = [path for path, text in outputs.items() if not path.is_file() or path.read_text() != text]
     if args.check:
         for path in stale:

@@ -23,10 +23,11 @@ def test_marked_blocks_are_replaced_and_the_rest_kept() -> None:
     assert out == "intro\n<!-- table:a -->\n| new a |\n<!-- /table:a -->\n" + kept
 
 
-def test_the_readme_marks_the_generated_tables() -> None:
-    text = (ROOT / "README.md").read_text()
-    for name in ("baselines-v0", "baselines-v1"):
-        assert text.count(f"<!-- table:{name} -->") == 1 and text.count(f"<!-- /table:{name} -->") == 1
+def test_the_readme_and_the_evaluation_page_mark_the_generated_tables() -> None:
+    for page, names in (("README.md", ["baselines-v0"]), ("docs/evaluation.md", ["baselines-v0", "baselines-v1"])):
+        text = (ROOT / page).read_text()
+        for name in names:
+            assert text.count(f"<!-- table:{name} -->") == 1 and text.count(f"<!-- /table:{name} -->") == 1
 
 
 def test_training_table_from_a_seeds_run_or_a_solve_benchmark(tmp_path: Path) -> None:
