@@ -439,14 +439,14 @@ BAD_DEFINITIONS = [
     ({"variables": [STRESS, *heartpole.V0_VARIABLES]}, "first six variables must be v0's exactly"),
     ({"variables": [Variable("alertness", 0.0), *heartpole.V0_VARIABLES[1:]]}, "v0's exactly"),
     ({"variables": (*heartpole.V0_VARIABLES, STRESS, STRESS)}, r"unique; \['stress'\] appear"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", 1.0))}, "low <= 0 <= high"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", -2.0, -1.0))}, "low <= 0 <= high"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", math.nan))}, "low must be a number"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", decay=0.0))}, r"decay must be None.*\(0, 1\]"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", decay=1.5))}, "decay must be None"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", decay="fast"))}, "decay must be None"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("stress", anxiety_relief=math.inf))}, "anxiety_relief"),
-    ({"variables": (*heartpole.V0_VARIABLES, Variable("my stress"))}, "identifier"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "low": 1.0})}, "low <= 0 <= high"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "low": -2.0, "high": -1.0})}, "low <= 0 <= high"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "low": math.nan})}, "low must be a number"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "decay": 0.0})}, r"decay must be None.*\(0, 1\]"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "decay": 1.5})}, "decay must be None"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "decay": "fast"})}, "decay must be None"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "anxiety_relief": math.inf})}, "anxiety_relief"),
+    ({"variables": (*heartpole.V0_VARIABLES, {"name": "my stress"})}, "identifier"),
     ({"variables": (*heartpole.V0_VARIABLES, {"name": "stress", "fade": 0.9})}, r"unknown field\(s\) \['fade'\]"),
     ({"variables": (*heartpole.V0_VARIABLES, {"low": 0.0})}, "variable #6 is missing its 'name'"),
     ({"variables": (*heartpole.V0_VARIABLES, "stress")}, "variable #6 must be a heartpole.Variable"),
@@ -511,3 +511,19 @@ def test_gymnasiums_own_id_rules_become_a_value_error_too() -> None:
         assert "OddPole-v0" not in gym.registry
     finally:
         gym.registry.pop("OddPole")
+
+
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({"low": 5.0}, "low <= 0 <= high"),
+        ({"decay": "fast"}, "decay must be None"),
+        ({"anxiety_relief": math.nan}, "anxiety_relief"),
+        ({"description": 3}, "description must be a string"),
+    ],
+)
+def test_a_variable_checks_its_own_fields_when_it_is_made(fields, message) -> None:
+    """Before, Variable("stress", low=5.0) was accepted and the env returned observations outside its own
+    observation_space; decay="fast" failed with a TypeError inside a step."""
+    with pytest.raises(ValueError, match=message):
+        Variable("stress", **fields)

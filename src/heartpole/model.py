@@ -237,11 +237,17 @@ class Params:
 
 
 def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
-    is_number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    in_range = is_number and math.isfinite(value) and (low < value if low_open else low <= value) and value <= high
+    in_range = (
+        is_number(value) and math.isfinite(value) and (low < value if low_open else low <= value) and value <= high
+    )
     if not in_range:
         bracket = "(" if low_open else "["
         raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")
+
+
+def is_number(value: Any) -> bool:
+    """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
 def _check_integer(name: str, value: Any, minimum: int) -> None:
@@ -279,6 +285,29 @@ class Variable:
     decay: float | str | None = None
     description: str = ""
     anxiety_relief: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"a variable name must be an identifier such as 'stress', got {self.name!r}")
+        where = f"variable {self.name!r}"
+        for bound in ("low", "high"):
+            value = getattr(self, bound)
+            if not is_number(value) or math.isnan(value):
+                raise ValueError(f"{where}: {bound} must be a number (or +-math.inf), got {value!r}")
+        if not self.low <= 0.0 <= self.high:
+            raise ValueError(
+                f"{where}: every variable starts at 0, so low <= 0 <= high is needed; got [{self.low}, {self.high}]"
+            )
+        decay_ok = self.decay is None or self.decay == "params" or (is_number(self.decay) and 0.0 < self.decay <= 1.0)
+        if not decay_ok:
+            raise ValueError(
+                f"{where}: decay must be None (no fading), 'params' (fades like hypertension) or the share left "
+                f"after a half-hour, in (0, 1]; got {self.decay!r}"
+            )
+        if not is_number(self.anxiety_relief) or not math.isfinite(self.anxiety_relief):
+            raise ValueError(f"{where}: anxiety_relief must be a finite number, got {self.anxiety_relief!r}")
+        if not isinstance(self.description, str):
+            raise ValueError(f"{where}: description must be a string, got {self.description!r}")
 
     def decay_factor(self, params: Params) -> float | None:
         """The per-half-hour factor of this variable under ``params``, or ``None`` if it does not fade."""
