@@ -35,7 +35,15 @@ from typing import Any
 import numpy as np
 
 from heartpole.dynamics import Dynamics
-from heartpole.policies import Policy, act_batch, available_builtins, load_policy, quiet_version_warnings
+from heartpole.model import check_integer
+from heartpole.policies import (
+    Policy,
+    act_batch,
+    available_builtins,
+    load_policy,
+    policy_name,
+    quiet_version_warnings,
+)
 
 DEFAULT_EPISODES = 2000
 DEFAULT_NUM_ENVS = 10_000
@@ -43,7 +51,8 @@ DEFAULT_NUM_ENVS = 10_000
 amortise the per-step Python overhead (measured: 10,000 episodes ran ~2x faster in chunks of 10,000 than
 of 2,000, and ~3x faster than of 1,000)."""
 
-_ENV_STREAM, _POLICY_STREAM = 0, 1
+ENV_STREAM, POLICY_STREAM = 0, 1
+"""The seed's spawn keys of the envs' episodes and of random policies, kept apart."""
 _Z975 = 1.959963984540054
 _T975_SMALL = {1: 12.7062, 2: 4.3027, 3: 3.1824, 4: 2.7764, 5: 2.5706, 6: 2.4469, 7: 2.3646, 8: 2.3060, 9: 2.2622}
 
@@ -361,8 +370,8 @@ def evaluate(
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
         FileNotFoundError: a model path that does not exist.
     """
-    episodes, seed = _count("episodes", episodes), _seed(seed)
-    chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else _count("num_envs", num_envs))
+    episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
+    chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     env_kwargs = dict(env_kwargs or {})
     act, name = _resolve(policy, env_id, env_kwargs, seed)
     started = time.perf_counter()
@@ -370,7 +379,7 @@ def evaluate(
     with _progress_callback(progress, f"evaluating {name}", episodes, env_id, env_kwargs) as tick:
         for index, first in enumerate(range(0, episodes, chunk)):
             with _vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
-                parts.append(_run_episodes(env, act, name, _chunk_seed(seed, index), tick))
+                parts.append(_run_episodes(env, act, name, chunk_seed(seed, index), tick))
                 max_steps = int(env.unwrapped.max_steps)
     result = EvaluationResult.from_episodes(
         _Episodes.concatenate(parts),
@@ -508,37 +517,22 @@ def _actions(
 def _resolve(policy: PolicyLike, env_id: str, env_kwargs: dict[str, Any], seed: int) -> tuple[Policy, str]:
     """The callable and the display name of ``policy``; a ``random`` built-in gets a generator from ``seed``."""
     if isinstance(policy, str):
-        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM,)))
+        rng = policy_rng(seed)
         return load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng), policy
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
     return policy, policy_name(policy)
 
 
-def policy_name(policy: Any) -> str:
-    """A display name: the policy's ``name`` attribute, its ``__name__``, or its class name."""
-    for attribute in ("name", "__name__"):
-        value = getattr(policy, attribute, None)
-        if isinstance(value, str) and value:
-            return value
-    return type(policy).__name__
+def chunk_seed(seed: int, index: int) -> int:
+    """The reset seed of chunk ``index``: independent streams per chunk, fixed by ``(seed, index)``; every
+    evaluation and recording of the same seed and chunks meets the same episodes."""
+    return int(np.random.SeedSequence(seed, spawn_key=(ENV_STREAM, index)).generate_state(1, np.uint64)[0])
 
 
-def _chunk_seed(seed: int, index: int) -> int:
-    """The reset seed of chunk ``index``: independent streams per chunk, fixed by ``(seed, index)``."""
-    return int(np.random.SeedSequence(seed, spawn_key=(_ENV_STREAM, index)).generate_state(1, np.uint64)[0])
-
-
-def _count(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
-
-
-def _seed(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {value!r}")
-    return int(value)
+def policy_rng(seed: int, *key: int) -> np.random.Generator:
+    """A random policy's own generator for ``seed``, apart from the envs' streams."""
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(POLICY_STREAM, *key)))
 
 
 @contextmanager

@@ -227,9 +227,9 @@ class Params:
 
     def __post_init__(self) -> None:
         _check_number("heart_attack_proclivity", self.heart_attack_proclivity, 0.0, 1.0)
-        _check_integer("max_steps", self.max_steps, 1)
+        check_integer("max_steps", self.max_steps, 1)
         _check_number("decay_rate", self.decay_rate, 0.0, 1.0, low_open=True)
-        _check_integer("sleep_half_hours", self.sleep_half_hours, 0)
+        check_integer("sleep_half_hours", self.sleep_half_hours, 0)
         _check_number("heart_attack_penalty", self.heart_attack_penalty, 0.0, math.inf)
         low, high = _pair("wake_alertness", self.wake_alertness)
         if not low <= high:
@@ -250,9 +250,11 @@ def is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
-def _check_integer(name: str, value: Any, minimum: int) -> None:
+def check_integer(name: str, value: Any, minimum: int) -> int:
+    """``value`` as an int, or ``ValueError`` naming ``name`` unless it is an integer >= ``minimum``."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def _pair(name: str, value: Any) -> tuple[float, float]:

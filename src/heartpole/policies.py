@@ -328,6 +328,15 @@ class OptimalPolicy:
         return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
 
 
+def policy_name(policy: Any) -> str:
+    """A display name: the policy's ``name`` attribute, its ``__name__``, or its class name."""
+    for attribute in ("name", "__name__"):
+        value = getattr(policy, attribute, None)
+        if isinstance(value, str) and value:
+            return value
+    return type(policy).__name__
+
+
 def act_batch(policy: Policy, obs: np.ndarray, decisions_left: Any) -> np.ndarray:
     """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``."""
     if getattr(policy, "needs_decisions_left", False):

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.policies import Policy, RandomPolicy
+from heartpole.policies import Policy, RandomPolicy, policy_name
 
 
 def check_actions(actions: Any, size: int, num_actions: int, name: str) -> np.ndarray:
@@ -35,15 +35,6 @@ def check_actions(actions: Any, size: int, num_actions: int, name: str) -> np.nd
     if size and (array.min() < 0 or array.max() >= num_actions):
         raise ValueError(f"policy {name!r} returned actions {array.min()}..{array.max()}; {expected}")
     return array.astype(np.intp, copy=False)
-
-
-def policy_name(policy: Any) -> str:
-    """A display name: the policy's ``name`` attribute, its ``__name__``, or its class name."""
-    for attribute in ("name", "__name__"):
-        value = getattr(policy, attribute, None)
-        if isinstance(value, str) and value:
-            return value
-    return type(policy).__name__
 
 
 def action_probabilities(policy: Policy, obs: np.ndarray, num_actions: int) -> np.ndarray:

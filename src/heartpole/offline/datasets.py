@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from heartpole.evaluation import chunk_seed, policy_rng
+from heartpole.model import check_integer
 from heartpole.offline.behaviour import (
     EpsilonGreedy,
     Mixture,
@@ -50,7 +52,7 @@ RECORD_NUM_ENVS = 1000
 """Episodes recorded side by side by default; each chunk is written before the next is run, so memory stays
 near 100 MB (about 100 bytes a step) whatever the number of episodes."""
 REFERENCE_EPISODES = 1000
-_ENV_STREAM, _POLICY_STREAM, _BEHAVIOUR_STREAM = 0, 1, 2
+_BEHAVIOUR_STREAM = 2  # after evaluation's ENV_STREAM and POLICY_STREAM
 
 PolicyLike = Policy | str
 
@@ -137,7 +139,8 @@ def record_dataset(
     """
     import minari
 
-    episodes, seed, epsilon = _count("episodes", episodes), _seed(seed), check_epsilon(epsilon)
+    episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
+    epsilon = check_epsilon(epsilon)
     dynamics = env_dynamics(env_id)
     num_actions = len(dynamics.actions)
     components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
@@ -151,8 +154,8 @@ def record_dataset(
         raise FileExistsError(
             f"dataset {target_id!r} already exists in {_root()}; pass force=True (--force) to replace it"
         )
-    chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else _count("num_envs", num_envs))
-    seeds = [_chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
+    chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
+    seeds = [chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
     low, high = reference_scores(env_id)
     extra = {
         "behaviour_policy": policy_name(base),
@@ -276,7 +279,7 @@ def to_buffers(trajectories: Trajectories) -> list[Any]:
 
 def _resolve(policy: PolicyLike, env_id: str, seed: int, index: int) -> Policy:
     if isinstance(policy, str):
-        return load_policy(policy, env_id, rng=_rng(seed, _POLICY_STREAM, index))
+        return load_policy(policy, env_id, rng=policy_rng(seed, index))
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
     return policy
@@ -284,10 +287,6 @@ def _resolve(policy: PolicyLike, env_id: str, seed: int, index: int) -> Policy:
 
 def _rng(seed: int, *key: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
-
-
-def _chunk_seed(seed: int, index: int) -> int:
-    return int(np.random.SeedSequence(seed, spawn_key=(_ENV_STREAM, index)).generate_state(1, np.uint64)[0])
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -377,18 +376,6 @@ def _check_dataset_id(target_id: str) -> None:
 
 def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9.]+", "-", Path(text).stem.lower() if text.endswith(".zip") else text.lower()).strip("-")
-
-
-def _count(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
-
-
-def _seed(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {value!r}")
-    return int(value)
 
 
 def _version() -> str:

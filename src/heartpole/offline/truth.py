@@ -15,12 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.evaluation import confidence_interval, plus_minus
-from heartpole.offline.behaviour import check_actions, policy_name
-from heartpole.policies import Policy, load_policy, quiet_version_warnings
+from heartpole.evaluation import chunk_seed, confidence_interval, plus_minus, policy_rng
+from heartpole.offline.behaviour import check_actions
+from heartpole.policies import Policy, load_policy, policy_name, quiet_version_warnings
 
 DEFAULT_GAMMA = 0.95
-_ENV_STREAM, _POLICY_STREAM = 0, 1
 
 
 @dataclass(frozen=True)
@@ -92,7 +91,7 @@ def true_value(
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 2:
         raise ValueError(f"episodes must be an integer >= 2, got {episodes!r}")
     if isinstance(policy, str):
-        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(_POLICY_STREAM,)))
+        rng = policy_rng(seed)
         act, name = load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng), policy
     else:
         act, name = policy, policy_name(policy)
@@ -125,7 +124,7 @@ def _run(
     """Per-episode discounted and undiscounted sums, realized and expected-risk, in one pass."""
     import gymnasium as gym
 
-    reset_seed = int(np.random.SeedSequence(seed, spawn_key=(_ENV_STREAM, 0)).generate_state(1, np.uint64)[0])
+    reset_seed = chunk_seed(seed, 0)
     try:
         with quiet_version_warnings():
             env = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs)
