@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import sys
 import types
 from typing import Any, NoReturn
@@ -56,8 +57,13 @@ def register(subparsers: Any) -> None:
     )
     parser.error = types.MethodType(_one_line_error, parser)  # type: ignore[method-assign]
     parser.add_argument("--algo", metavar="ALGO", help="ppo, a2c or dqn (default: the preset's: ppo, or dqn)")
-    parser.add_argument("--preset", default="default", metavar="NAME", help="default or tutorial (default: default)")
-    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument(
+        "--preset",
+        default="default",
+        metavar="NAME",
+        help="default, tutorial, or a preset file (.json) such as 'heartpole tune' writes (default: default)",
+    )
+    parser.add_argument("--env", metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)")
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", default="0", metavar="S", help="seed of the model and the env (default 0)")
@@ -121,13 +127,16 @@ def parse_seeds(text: str) -> list[int]:
 
 def build_config(args: argparse.Namespace) -> Any:
     """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
-    from heartpole.training import preset_config
+    from dataclasses import replace
 
-    if args.preset not in PRESETS:
-        raise CommandError(f"unknown preset {args.preset!r}; choose one of {', '.join(PRESETS)}")
+    from heartpole.training import load_preset, preset_config
+
+    is_file = args.preset not in PRESETS and (args.preset.endswith(".json") or os.path.isfile(args.preset))
+    if args.preset not in PRESETS and not is_file:
+        raise CommandError(f"unknown preset {args.preset!r}; choose one of {', '.join(PRESETS)} or a preset file")
     if args.algo is not None and args.algo.lower() not in ALGORITHMS:
         raise CommandError(f"unknown algorithm {args.algo!r}; choose one of {', '.join(ALGORITHMS)}")
-    overrides: dict[str, Any] = {"env_id": args.env}
+    overrides: dict[str, Any] = {} if args.env is None else {"env_id": args.env}
     timesteps = whole_number("--timesteps", args.timesteps, 1)
     n_envs = whole_number("--n-envs", args.n_envs, 1)
     if timesteps is not None:
@@ -136,14 +145,20 @@ def build_config(args: argparse.Namespace) -> Any:
         overrides["n_envs"] = n_envs
     overrides["seed"] = whole_number("--seed", args.seed, 0)
     try:
-        return preset_config(args.preset, args.algo.lower() if args.algo else None, **overrides)
-    except ValueError as error:
-        raise CommandError(str(error)) from None
+        if not is_file:
+            return preset_config(args.preset, args.algo.lower() if args.algo else None, **overrides)
+        config = load_preset(args.preset)
+    except (ValueError, OSError) as error:
+        raise CommandError(" ".join(str(error).split())) from None
+    if args.algo is not None and args.algo.lower() != config.algo:
+        raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
+    return replace(config, **overrides)
 
 
 def default_out(config: Any) -> str:
     """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others."""
-    return f"runs/{config.algo}" if config.preset == "default" else f"runs/{config.preset}-{config.algo}"
+    preset = os.path.splitext(os.path.basename(config.preset))[0]
+    return f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
 
 
 # ------------------------------------------------------------------------------------------------------
