@@ -22,6 +22,8 @@ ALGORITHMS = ("ppo", "a2c", "dqn")
 PRESETS = ("default", "tutorial")
 MAX_SEEDS = 100
 TRAINING_MODULES = ("stable_baselines3", "torch", "tqdm")
+RAY_MODULES = ("ray", "optuna")
+RAY_EXTRA = "pip install 'heartpole[ray]'"
 
 DESCRIPTION = """\
 Train an agent on HeartPole with Stable-Baselines3 on the native vector env, with a progress bar, and
@@ -42,6 +44,8 @@ examples:
   heartpole train --out runs/ppo                       # the default: PPO that solves HeartPole-v0
   heartpole train --preset tutorial --out runs/tutorial
   heartpole train --seeds 0-4 --out runs/ppo-seeds     # five seeds, IQM with a bootstrap interval
+  heartpole train --seeds 0-19 --ray --out runs/ppo-20 # twenty seeds as Ray Tune trials, side by side
+  heartpole train --preset runs/tune-ppo/best_preset.json --seeds 0-9   # a configuration 'heartpole tune' found
   heartpole evaluate --policy runs/ppo/model.zip       # evaluate the trained model again
 """
 
@@ -74,6 +78,11 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    ray = parser.add_argument_group("Ray (needs the 'ray' extra; see docs/scale.md)")
+    ray.add_argument("--ray", action="store_true", help="run the seeds of --seeds as Ray Tune trials, side by side")
+    ray.add_argument("--address", metavar="ADDR", help="a Ray cluster to join, e.g. auto or ray://host:10001 "
+                     "(default: start Ray on this machine)")  # fmt: skip
+    ray.add_argument("--cpus-per-trial", metavar="K", help="CPUs (and PyTorch threads) per seed (default 1)")
     parser.set_defaults(handler=run_train)
 
 
@@ -177,6 +186,7 @@ def run_train(args: argparse.Namespace) -> int:
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     episodes = whole_number("--eval-episodes", args.eval_episodes, 2)
     eval_seed = whole_number("--eval-seed", args.eval_seed, 0)
+    cpus_per_trial = _check_ray_options(args, seeds)
     try:
         env_dynamics(config.env_id)
         if config.timesteps < config.n_envs:
@@ -190,8 +200,11 @@ def run_train(args: argparse.Namespace) -> int:
         _announce(config, seeds, out)
     try:
         with training.staged_output(out, args.force) as staging:
-            if seeds is None:
-                result: dict[str, Any] = training.train_run(
+            result: dict[str, Any]
+            if args.ray:
+                result = _train_seeds_ray(args, config, seeds, staging, out, episodes, eval_seed, cpus_per_trial)
+            elif seeds is None:
+                result = training.train_run(
                     config, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out
                 )
             else:
@@ -216,7 +229,53 @@ def run_train(args: argparse.Namespace) -> int:
     else:
         print(format_summary(result))
         print(f"wrote {out}/seed_<s>/ for seeds {args.seeds} and {out}/{training.SUMMARY_FILE}")
-    return 0
+    return 1 if result.get("failed") else 0
+
+
+def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int:
+    """``--cpus-per-trial`` (default 1); the Ray options only with ``--ray``, ``--ray`` only with ``--seeds``."""
+    if not args.ray:
+        given = [name for name, value in (("--address", args.address), ("--cpus-per-trial", args.cpus_per_trial))
+                 if value is not None]  # fmt: skip
+        if given:
+            raise CommandError(f"{' and '.join(given)} only apply with --ray")
+        return 1
+    if seeds is None:
+        raise CommandError("--ray runs the seeds of --seeds as Ray Tune trials; give --seeds, e.g. --seeds 0-19")
+    missing = missing_ray_modules()
+    if missing:
+        raise CommandError(f"--ray needs {', '.join(missing)}, which this Python cannot import: {RAY_EXTRA}")
+    return whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1
+
+
+def _train_seeds_ray(
+    args: argparse.Namespace, config: Any, seeds: Any, staging: Any, out: Any, episodes: int, eval_seed: int, cpus: int
+) -> dict[str, Any]:
+    from heartpole import scale
+
+    try:
+        return scale.train_seeds_ray(
+            config,
+            seeds,
+            staging,
+            eval_episodes=episodes,
+            eval_seed=eval_seed,
+            address=args.address,
+            cpus_per_trial=cpus,
+            final_folder=out,
+            on_run=None if args.json else lambda run: print(format_run(run), flush=True),
+        )
+    except scale.AllTrialsFailedError as error:
+        for failure in error.failures:
+            print(failure.line(), file=sys.stderr)
+        raise CommandError(f"every seed failed; nothing written to {out}") from None
+    except ConnectionError as error:
+        raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None
+
+
+def missing_ray_modules() -> list[str]:
+    """The modules of the ``ray`` extra that this Python cannot import (empty when Ray can run)."""
+    return [name for name in RAY_MODULES if importlib.util.find_spec(name) is None]
 
 
 def missing_training_modules() -> list[str]:
@@ -278,4 +337,5 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines = [format_table(headers, rows), "", f"across {agg['seeds']} seeds, interquartile mean [95% bootstrap CI]:"]
     lines += [f"  {label:<22} {figure}" for label, figure in aggregate_figures(agg) if label != "wall time (s)"]
     lines.append(f"solved (heart attacks <= 1.30, score >= 0.30): {summary['solved_seeds']} of {agg['seeds']} seeds")
+    lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary.get("failed", ())]
     return "\n".join(lines)
