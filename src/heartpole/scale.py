@@ -81,6 +81,10 @@ class AllTrialsFailedError(RuntimeError):
         self.failures = list(failures)
 
 
+class SearchInterruptedError(KeyboardInterrupt):
+    """The search stopped (Ctrl-C) before all its trials finished; its state is saved for ``resume``."""
+
+
 # ------------------------------------------------------------------------------------------------------
 # Ray, quietly
 
@@ -457,8 +461,10 @@ def tune_search(
     Raises:
         AllTrialsFailedError: every trial failed (``tune_summary.json`` and ``trials.csv`` are still written).
     """
+    import optuna
     from ray.tune.search.optuna import OptunaSearch
 
+    optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
     folder = Path(folder).resolve()
     if resume:
         settings = read_settings(folder)
@@ -499,28 +505,28 @@ def tune_search(
                 run_config=_run_config(folder, SEARCH_NAME, bar),
             )
         grid = _fit(tuner, bar)
+    finished = [r for r in grid if r.error is not None or OBJECTIVE in r.metrics]
+    if len(finished) < settings.trials:  # Tune stops on Ctrl-C after saving its state
+        raise SearchInterruptedError(f"{len(finished)} of {settings.trials} trials finished; resume the search")
     return _write_search_results(settings, grid, folder)
 
 
-def _trial_id(result: Any) -> str:
-    """A Tune result's trial id (``"8153d_00007"``): reported with every result, else in its folder name."""
-    if "trial_id" in result.metrics:
-        return str(result.metrics["trial_id"])
-    match = re.search(r"_([0-9a-f]{5}_[0-9]{5})_", Path(result.path).name)
+def _trial_tag(result: Any) -> tuple[int, str]:
+    """A search trial's number (1, 2, ... in the order Optuna proposed them) and Tune's id for it, both
+    in the name of the trial's folder: ``_search_trial_<id>_<number>_<parameters>_<date>``."""
+    name = Path(result.path).name
+    trial_id = str(result.metrics.get("trial_id") or name.removeprefix("_search_trial_").split("_")[0])
+    match = re.search(rf"_{re.escape(trial_id)}_([0-9]+)(_|$)", name)
     if match is None:
-        raise ValueError(f"cannot tell the trial id of {result.path}")
-    return match.group(1)
-
-
-def _trial_number(trial_id: str) -> int:
-    return int(trial_id.rsplit("_", 1)[-1])
+        raise ValueError(f"cannot tell the trial number of {result.path}")
+    return int(match.group(1)), trial_id
 
 
 def _write_search_results(settings: SearchSettings, grid: Any, folder: Path) -> dict[str, Any]:
     trials, failures = [], []
     for result in grid:
-        trial_id = _trial_id(result)
-        row: dict[str, Any] = {"trial": _trial_number(trial_id), "trial_id": trial_id, **dict(result.config)}
+        number, trial_id = _trial_tag(result)
+        row: dict[str, Any] = {"trial": number, "trial_id": trial_id, **dict(result.config)}
         if result.error is not None:
             failure = _failure(result, f"trial {row['trial']}")
             failures.append(failure)
