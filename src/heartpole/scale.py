@@ -160,25 +160,28 @@ class _Bar(tune.Callback):
         return f"{self.label} {self.done}/{self.total}{failed}, best expected-risk return {best}"
 
     def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        """A trial finished: count it, track the best figure, pass its result on."""
+        """A trial finished: pass its result on, redraw."""
         result = dict(trial.last_result or {})
-        if self.metric in result:
-            self.best = max(self.best, float(result[self.metric]))
         if self.on_result is not None and result:
             if self.bar.enabled:  # clear the bar's line for whatever on_result prints
                 self.bar.stream.write("\r\x1b[K")
             self.on_result(result)
-        self._advance(done=1)
+        self._redraw(trials, trial, failed=False)
 
     def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
-        """A trial raised: count it as done and failed."""
-        self.failed += 1
-        self._advance(done=1)
+        """A trial raised: redraw with it counted as failed."""
+        self._redraw(trials, trial, failed=True)
 
-    def _advance(self, done: int) -> None:
-        self.done += done
+    def _redraw(self, trials: list, current: Any, failed: bool) -> None:
+        # Count from all trials, so that a restored search starts from the trials it had finished.
+        others = [t for t in trials if t is not current]
+        self.failed = int(failed) + sum(t.status == "ERROR" for t in others)
+        self.done = 1 + sum(t.status in ("TERMINATED", "ERROR") for t in others)
+        figures = [t.last_result[self.metric] for t in trials if t.last_result and self.metric in t.last_result]
+        self.best = max(figures, default=-math.inf)
         self.bar.description = self._describe()
-        self.bar.update(done)
+        self.bar.done = self.done - 1
+        self.bar.update(1)
 
     def close(self) -> None:
         """End the bar's line."""
@@ -488,7 +491,6 @@ def tune_search(
             # Tuner.restore takes no run configuration: give the restored one a bar that starts where
             # the interrupted search stopped.
             tuner._local_tuner.get_run_config().callbacks = [bar]
-            bar.done = len(list((folder / "trials").glob("*/" + training.SUMMARY_FILE)))
         else:
             folder.mkdir(parents=True, exist_ok=True)
             _write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
@@ -598,6 +600,9 @@ def plot_search(trials: Sequence[Mapping[str, Any]], path: str | os.PathLike[str
     failed = [row["trial"] for row in trials if row.get(OBJECTIVE) is None]
     if failed and y:
         axes.scatter(failed, [min(y)] * len(failed), marker="x", color="#7f8c8d", label="failed")
+    from matplotlib.ticker import MaxNLocator
+
+    axes.xaxis.set_major_locator(MaxNLocator(integer=True))
     axes.set_xlabel("trial")
     axes.set_ylabel("expected-risk return (IQM over seeds)")
     axes.set_title(f"hyperparameter search: {len(done)} trials" + (f", {len(failed)} failed" if failed else ""))

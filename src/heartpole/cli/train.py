@@ -238,7 +238,7 @@ def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int
         given = [name for name, value in (("--address", args.address), ("--cpus-per-trial", args.cpus_per_trial))
                  if value is not None]  # fmt: skip
         if given:
-            raise CommandError(f"{' and '.join(given)} only apply with --ray")
+            raise CommandError(f"{' and '.join(given)} {'needs' if len(given) == 1 else 'need'} --ray")
         return 1
     if seeds is None:
         raise CommandError("--ray runs the seeds of --seeds as Ray Tune trials; give --seeds, e.g. --seeds 0-19")
