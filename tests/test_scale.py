@@ -231,3 +231,69 @@ def test_an_interrupted_search_resumes_without_rerunning_finished_trials(tmp_pat
     assert set(early) <= {row["trial_id"] for row in summary["trials"]}
     for trial_id, written in early.items():  # trials finished before the interruption were not run again
         assert (out / "trials" / trial_id / "summary.json").stat().st_mtime_ns == written
+
+
+# ------------------------------------------------------------------------------------------------------
+# the RLlib example: registration and a few steps only (RLlib itself is not installed by any extra)
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "rllib_heartpole.py"
+
+
+@pytest.fixture(scope="module")
+def rllib_example() -> object:
+    """examples/rllib_heartpole.py as a module, pickled by value as when it runs as a script."""
+    import importlib.util
+
+    from ray import cloudpickle  # Ray's own copy pickles the registry's creators
+
+    spec = importlib.util.spec_from_file_location("rllib_heartpole", EXAMPLE)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules["rllib_heartpole"] = module
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    cloudpickle.register_pickle_by_value(module)
+    yield module
+    cloudpickle.unregister_pickle_by_value(module)
+    del sys.modules["rllib_heartpole"]
+
+
+def steps_of(env: object, n: int) -> list[tuple[bool, bool]]:
+    env.reset(seed=0)  # type: ignore[attr-defined]
+    return [tuple(bool(x) for x in env.step(0)[2:4]) for _ in range(n)]  # type: ignore[attr-defined]
+
+
+def test_rllib_example_registers_a_creator_of_heartpole(rllib_example: object) -> None:
+    from ray.tune.registry import ENV_CREATOR, _global_registry
+
+    name = rllib_example.register("HeartPole-test-v0")  # type: ignore[attr-defined]
+    assert _global_registry.contains(ENV_CREATOR, name)
+    env = _global_registry.get(ENV_CREATOR, name)({"max_steps": 4})
+    assert env.unwrapped.max_steps == 4
+    assert steps_of(env, 4) == [(False, False)] * 3 + [(False, True)]  # truncated at max_steps, never terminated
+
+
+@pytest.mark.slow
+def test_rllib_example_env_is_made_inside_a_ray_worker(local_ray: None, rllib_example: object) -> None:
+    import ray
+
+    name = rllib_example.register("HeartPole-worker-v0")  # type: ignore[attr-defined]
+
+    @ray.remote
+    def in_worker(name: str) -> dict[str, object]:
+        import gymnasium as gym
+        from ray.tune.registry import ENV_CREATOR, _global_registry
+
+        fresh = "heartpole" not in sys.modules
+        try:
+            gym.make("HeartPole-v0")
+            plain = True
+        except gym.error.NameNotFound:
+            plain = False
+        env = _global_registry.get(ENV_CREATOR, name)({"max_steps": 3})
+        env.reset(seed=0)
+        steps = [tuple(bool(x) for x in env.step(0)[2:4]) for _ in range(3)]
+        return {"fresh": fresh, "plain_id_works": plain, "steps": steps}
+
+    result = ray.get(in_worker.remote(name), timeout=120)
+    assert result["steps"] == [(False, False), (False, False), (False, True)]
+    if result["fresh"]:  # a worker that never imported heartpole does not know the plain id
+        assert result["plain_id_works"] is False
