@@ -55,7 +55,7 @@ def train(iterations: int, seed: int = 0) -> list[float]:
         PPOConfig()
         .environment(name, env_config={})
         .env_runners(num_env_runners=1, num_envs_per_env_runner=4)
-        .training(gamma=0.95, lr=3e-4, train_batch_size_per_learner=8000)
+        .training(gamma=0.95, lr=3e-4, train_batch_size_per_learner=4000, minibatch_size=500, num_epochs=5)
         .debugging(seed=seed)
     )
     ray.init(include_dashboard=False, ignore_reinit_error=True)
