@@ -35,7 +35,7 @@ from heartpole import scale
 from ray import tune
 imported = time.perf_counter()
 def nothing(params):
-    tune.report({"x": 1.0})
+    tune.report({{"x": 1.0}})
 with scale.ray_session():
     ready = time.perf_counter()
     bar = scale._Bar({trials}, "trials", "x")
