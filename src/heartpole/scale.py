@@ -274,6 +274,7 @@ def train_seeds_ray(
 
     Raises:
         AllTrialsFailedError: every seed failed (nothing is aggregated or written).
+        KeyboardInterrupt: Ctrl-C stopped the trials (Tune catches it and stops them first).
     """
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
@@ -307,6 +308,8 @@ def train_seeds_ray(
             seed = int(result.config["seed"])
             if result.error is not None:
                 failures.append(_failure(result, f"seed {seed}"))
+            elif "expected_return" not in result.metrics:  # Tune stopped it: Ctrl-C
+                raise KeyboardInterrupt
             else:
                 runs[seed] = _run_of(result.metrics)
     if not runs:
