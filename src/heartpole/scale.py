@@ -305,11 +305,11 @@ def train_seeds_ray(
         grid = _fit(tuner, bar)
         runs, failures = {}, []
         for result in grid:
+            if result.error is None and "expected_return" not in (result.metrics or {}):
+                raise KeyboardInterrupt  # Tune stopped the trial before it finished: Ctrl-C
             seed = int(result.config["seed"])
             if result.error is not None:
                 failures.append(_failure(result, f"seed {seed}"))
-            elif "expected_return" not in result.metrics:  # Tune stopped it: Ctrl-C
-                raise KeyboardInterrupt
             else:
                 runs[seed] = _run_of(result.metrics)
     if not runs:
@@ -510,7 +510,7 @@ def tune_search(
                 run_config=_run_config(folder, SEARCH_NAME, bar),
             )
         grid = _fit(tuner, bar)
-    finished = [r for r in grid if r.error is not None or OBJECTIVE in r.metrics]
+    finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
     if len(finished) < settings.trials:  # Tune stops on Ctrl-C after saving its state
         raise SearchInterruptedError(f"{len(finished)} of {settings.trials} trials finished; resume the search")
     return _write_search_results(settings, grid, folder)
