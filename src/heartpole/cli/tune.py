@@ -74,7 +74,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--force", action="store_true", help="replace an earlier search in --out")
     parser.add_argument("--address", metavar="ADDR", help="a Ray cluster to join, e.g. auto or ray://host:10001 "
                         "(default: start Ray on this machine)")  # fmt: skip
-    parser.add_argument("--cpus-per-trial", default="1", metavar="K", help="CPUs (and PyTorch threads) per trial")
+    parser.add_argument("--cpus-per-trial", default="1", metavar="K", help="CPUs per trial (default 1)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     parser.set_defaults(handler=run_tune)
 
