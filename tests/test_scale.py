@@ -102,6 +102,7 @@ def test_default_space_and_apply_params() -> None:
     space = scale.default_space("ppo")
     assert set(space) == {"learning_rate", "ent_coef", "gamma", "n_steps", "net_width", "net_depth"}
     assert set(space["n_steps"].categories) == {32, 64, 128, 256, 512}
+    assert set(scale.default_space("a2c")["n_steps"].categories) == {5, 8, 16, 32}
     base = training.preset_config()
     config = scale.apply_params(base, {"learning_rate": 1e-4, "n_steps": 64.0, "net_width": 32, "net_depth": 3})
     assert config.net_arch == (32, 32, 32)
