@@ -113,6 +113,25 @@ def test_default_space_and_apply_params() -> None:
         scale.default_space("dqn")
 
 
+def test_progress_bar_counts_trials_and_the_best_figure(capsys: pytest.CaptureFixture[str]) -> None:
+    from types import SimpleNamespace
+
+    from heartpole import scale
+
+    seen: list[dict] = []
+    bar = scale._Bar(3, "seeds", "expected_return", seen.append)
+    old = SimpleNamespace(status="TERMINATED", last_result={"expected_return": -130.0})  # restored, finished
+    new = SimpleNamespace(status="RUNNING", last_result={"expected_return": -124.0})
+    broken = SimpleNamespace(status="RUNNING", last_result={})
+    bar.on_trial_complete(0, [old, new, broken], new)
+    assert bar._describe() == "seeds 2/3, best expected-risk return -124.000" and seen == [{"expected_return": -124.0}]
+    new.status = "TERMINATED"
+    bar.on_trial_error(0, [old, new, broken], broken)
+    assert bar._describe() == "seeds 3/3, 1 failed, best expected-risk return -124.000"
+    assert bar.bar.done == 3
+    bar.close()
+
+
 def test_search_settings_round_trip() -> None:
     from heartpole import scale
 
