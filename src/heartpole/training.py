@@ -58,7 +58,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -538,6 +538,24 @@ class TrainConfig:
         out["reward"] = {**asdict(self.reward), "description": self.reward.describe()}
         return out
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
+        """The inverse of :meth:`to_dict` (``reward["description"]`` is ignored); unknown keys raise ValueError."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown configuration keys {unknown}; known: {', '.join(sorted(known))}")
+        values = dict(data)
+        if "reward" in values:
+            reward = {k: v for k, v in dict(values["reward"]).items() if k != "description"}
+            values["reward"] = TrainingReward(**reward)
+        if "net_arch" in values:
+            values["net_arch"] = tuple(int(n) for n in values["net_arch"])
+        for key in ("hyperparameters", "env_kwargs"):
+            if key in values:
+                values[key] = dict(values[key])
+        return cls(**values)
+
 
 DEFAULT_HYPERPARAMETERS: Mapping[str, Mapping[str, Any]] = {
     # PPO: 16 envs x 128 steps per update, big minibatches (few gradient steps, fast on 2 cores), a
@@ -659,6 +677,45 @@ def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
     """Whether an evaluation's heart attacks and score meet ``bar`` (from :func:`env_solved_bar`)."""
     score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
     return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
+
+
+PRESET_FORMAT = "heartpole-preset/1"
+"""The ``format`` field of a preset file (:func:`save_preset`)."""
+
+
+def save_preset(config: TrainConfig, path: str | os.PathLike[str], **notes: Any) -> Path:
+    """Write ``config`` (all but its seed) as a JSON preset file that ``heartpole train --preset FILE`` reads.
+
+    ``notes`` (e.g. where the configuration came from) are stored under ``"notes"`` and ignored on loading.
+    The file is written to a temporary name and moved into place.
+    """
+    path = Path(path)
+    data = {"format": PRESET_FORMAT, "config": {k: v for k, v in config.to_dict().items() if k != "seed"}}
+    if notes:
+        data["notes"] = notes
+    staging = path.with_name(f".{path.name}.partial")
+    _write_json(staging, data)
+    os.replace(staging, path)
+    return path
+
+
+def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
+    """The :class:`TrainConfig` of a preset file written by :func:`save_preset` (seed 0).
+
+    Raises:
+        ValueError: the file is not JSON, not a preset file, or holds a bad configuration.
+        OSError: the file cannot be read.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"preset file {path} is not JSON: {error}") from None
+    if not isinstance(data, dict) or data.get("format") != PRESET_FORMAT or not isinstance(data.get("config"), dict):
+        raise ValueError(f"{path} is not a preset file (expected a JSON object with format {PRESET_FORMAT!r})")
+    try:
+        return TrainConfig.from_dict(data["config"])
+    except TypeError as error:
+        raise ValueError(f"preset file {path}: {error}") from None
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -858,18 +915,30 @@ def train_seeds(
         runs.append(run)
         if on_run is not None:
             on_run(run)
-    summary = {
+    summary = seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
+    _write_json(folder / SUMMARY_FILE, summary)
+    return summary
+
+
+def seeds_summary(
+    config: TrainConfig,
+    seeds: Sequence[int],
+    runs: Sequence[Mapping[str, Any]],
+    *,
+    eval_episodes: int,
+    eval_seed: int,
+) -> dict[str, Any]:
+    """The content of ``summary.json`` for ``runs`` (:func:`train_run` results) of ``config`` over ``seeds``."""
+    return {
         "config": replace(config, seed=int(seeds[0])).to_dict() | {"seed": None},
         "seeds": [int(s) for s in seeds],
         "eval_episodes": eval_episodes,
         "eval_seed": eval_seed,
-        "runs": runs,
+        "runs": list(runs),
         "aggregate": aggregate(runs),
         "solved_bar": runs[0]["solved_bar"] if runs else env_solved_bar(config.env_id, config.env_kwargs),
         "solved_seeds": sum(run["solved"] for run in runs),
     }
-    _write_json(folder / SUMMARY_FILE, summary)
-    return summary
 
 
 # ------------------------------------------------------------------------------------------------------

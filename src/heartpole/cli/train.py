@@ -10,6 +10,7 @@ import argparse
 import importlib.util
 import json
 import math
+import os
 import sys
 import types
 from typing import Any, NoReturn
@@ -22,6 +23,8 @@ ALGORITHMS = ("ppo", "a2c", "dqn")
 PRESETS = ("default", "tutorial")
 MAX_SEEDS = 100
 TRAINING_MODULES = ("stable_baselines3", "torch", "tqdm")
+RAY_MODULES = ("ray", "optuna")
+RAY_EXTRA = "pip install 'heartpole[ray]'"
 
 DESCRIPTION = """\
 Train an agent on HeartPole with Stable-Baselines3 on the native vector env, with a progress bar, and
@@ -50,6 +53,8 @@ examples:
   heartpole train --seeds 0-4 --out runs/ppo-seeds     # five seeds, IQM with a bootstrap interval
   heartpole train --env HeartPole-v1 --out runs/v1     # v1, rate from v1's best known score
   heartpole train --env HeartPole-v1 --score-rate auto --out runs/v1-auto
+  heartpole train --seeds 0-19 --ray --out runs/ppo-20 # twenty seeds as Ray Tune trials, side by side
+  heartpole train --preset runs/tune-ppo/best_preset.json --seeds 0-9   # a configuration 'heartpole tune' found
   heartpole evaluate --policy runs/ppo/model.zip       # evaluate the trained model again
 """
 
@@ -65,8 +70,13 @@ def register(subparsers: Any) -> None:
     )
     parser.error = types.MethodType(_one_line_error, parser)  # type: ignore[method-assign]
     parser.add_argument("--algo", metavar="ALGO", help="ppo, a2c or dqn (default: the preset's: ppo, or dqn)")
-    parser.add_argument("--preset", default="default", metavar="NAME", help="default or tutorial (default: default)")
-    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument(
+        "--preset",
+        default="default",
+        metavar="NAME",
+        help="default, tutorial, or a preset file (.json) such as 'heartpole tune' writes (default: default)",
+    )
+    parser.add_argument("--env", metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)")
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",
@@ -84,6 +94,11 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    ray = parser.add_argument_group("Ray (needs the 'ray' extra; see docs/scale.md)")
+    ray.add_argument("--ray", action="store_true", help="run the seeds of --seeds as Ray Tune trials, side by side")
+    ray.add_argument("--address", metavar="ADDR", help="a Ray cluster to join, e.g. auto or ray://host:10001 "
+                     "(default: start Ray on this machine)")  # fmt: skip
+    ray.add_argument("--cpus-per-trial", metavar="K", help="CPUs (and PyTorch threads) per seed (default 1)")
     parser.set_defaults(handler=run_train)
 
 
@@ -137,13 +152,16 @@ def parse_seeds(text: str) -> list[int]:
 
 def build_config(args: argparse.Namespace) -> Any:
     """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
-    from heartpole.training import preset_config
+    from dataclasses import replace
 
-    if args.preset not in PRESETS:
-        raise CommandError(f"unknown preset {args.preset!r}; choose one of {', '.join(PRESETS)}")
+    from heartpole.training import load_preset, preset_config
+
+    is_file = args.preset not in PRESETS and (args.preset.endswith(".json") or os.path.isfile(args.preset))
+    if args.preset not in PRESETS and not is_file:
+        raise CommandError(f"unknown preset {args.preset!r}; choose one of {', '.join(PRESETS)} or a preset file")
     if args.algo is not None and args.algo.lower() not in ALGORITHMS:
         raise CommandError(f"unknown algorithm {args.algo!r}; choose one of {', '.join(ALGORITHMS)}")
-    overrides: dict[str, Any] = {"env_id": args.env}
+    overrides: dict[str, Any] = {} if args.env is None else {"env_id": args.env}
     timesteps = whole_number("--timesteps", args.timesteps, 1)
     n_envs = whole_number("--n-envs", args.n_envs, 1)
     if timesteps is not None:
@@ -153,11 +171,17 @@ def build_config(args: argparse.Namespace) -> Any:
     overrides["seed"] = whole_number("--seed", args.seed, 0)
     score_rate = _score_rate(args.score_rate)
     try:
-        if args.preset == "tutorial" and score_rate != "best":
-            raise ValueError("--score-rate applies to the default preset; the tutorial trains on the env's reward")
-        return preset_config(args.preset, args.algo.lower() if args.algo else None, score_rate=score_rate, **overrides)
-    except ValueError as error:
+        if not is_file:
+            if args.preset == "tutorial" and score_rate != "best":
+                raise ValueError("--score-rate applies to the default preset; the tutorial trains on the env's reward")
+            algo = args.algo.lower() if args.algo else None
+            return preset_config(args.preset, algo, score_rate=score_rate, **overrides)
+        config = load_preset(args.preset)
+    except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
+    if args.algo is not None and args.algo.lower() != config.algo:
+        raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
+    return replace(config, **overrides)
 
 
 def _score_rate(text: str) -> float | str:
@@ -174,7 +198,8 @@ def _score_rate(text: str) -> float | str:
 
 def default_out(config: Any) -> str:
     """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others."""
-    return f"runs/{config.algo}" if config.preset == "default" else f"runs/{config.preset}-{config.algo}"
+    preset = os.path.splitext(os.path.basename(config.preset))[0]
+    return f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -193,6 +218,7 @@ def run_train(args: argparse.Namespace) -> int:
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     episodes = whole_number("--eval-episodes", args.eval_episodes, 2)
     eval_seed = whole_number("--eval-seed", args.eval_seed, 0)
+    cpus_per_trial = _check_ray_options(args, seeds)
     try:
         env_dynamics(config.env_id)
         if config.timesteps < config.n_envs:
@@ -206,8 +232,11 @@ def run_train(args: argparse.Namespace) -> int:
         _announce(config, seeds, out)
     try:
         with training.staged_output(out, args.force) as staging:
-            if seeds is None:
-                result: dict[str, Any] = training.train_run(
+            result: dict[str, Any]
+            if args.ray:
+                result = _train_seeds_ray(args, config, seeds, staging, out, episodes, eval_seed, cpus_per_trial)
+            elif seeds is None:
+                result = training.train_run(
                     config, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out
                 )
             else:
@@ -232,7 +261,53 @@ def run_train(args: argparse.Namespace) -> int:
     else:
         print(format_summary(result))
         print(f"wrote {out}/seed_<s>/ for seeds {args.seeds} and {out}/{training.SUMMARY_FILE}")
-    return 0
+    return 1 if result.get("failed") else 0
+
+
+def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int:
+    """``--cpus-per-trial`` (default 1); the Ray options only with ``--ray``, ``--ray`` only with ``--seeds``."""
+    if not args.ray:
+        given = [name for name, value in (("--address", args.address), ("--cpus-per-trial", args.cpus_per_trial))
+                 if value is not None]  # fmt: skip
+        if given:
+            raise CommandError(f"{' and '.join(given)} {'needs' if len(given) == 1 else 'need'} --ray")
+        return 1
+    if seeds is None:
+        raise CommandError("--ray runs the seeds of --seeds as Ray Tune trials; give --seeds, e.g. --seeds 0-19")
+    missing = missing_ray_modules()
+    if missing:
+        raise CommandError(f"--ray needs {', '.join(missing)}, which this Python cannot import: {RAY_EXTRA}")
+    return whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1
+
+
+def _train_seeds_ray(
+    args: argparse.Namespace, config: Any, seeds: Any, staging: Any, out: Any, episodes: int, eval_seed: int, cpus: int
+) -> dict[str, Any]:
+    from heartpole import scale
+
+    try:
+        return scale.train_seeds_ray(
+            config,
+            seeds,
+            staging,
+            eval_episodes=episodes,
+            eval_seed=eval_seed,
+            address=args.address,
+            cpus_per_trial=cpus,
+            final_folder=out,
+            on_run=None if args.json else lambda run: print(format_run(run), flush=True),
+        )
+    except scale.AllTrialsFailedError as error:
+        for failure in error.failures:
+            print(failure.line(), file=sys.stderr)
+        raise CommandError(f"every seed failed; nothing written to {out}") from None
+    except ConnectionError as error:
+        raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None
+
+
+def missing_ray_modules() -> list[str]:
+    """The modules of the ``ray`` extra that this Python cannot import (empty when Ray can run)."""
+    return [name for name in RAY_MODULES if importlib.util.find_spec(name) is None]
 
 
 def missing_training_modules() -> list[str]:
@@ -324,4 +399,5 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines = [format_table(headers, rows), "", f"across {agg['seeds']} seeds, interquartile mean [95% bootstrap CI]:"]
     lines += [f"  {label:<22} {figure}" for label, figure in aggregate_figures(agg) if label != "wall time (s)"]
     lines.append(f"solved ({describe_bar(summary['solved_bar'])}): {summary['solved_seeds']} of {agg['seeds']} seeds")
+    lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary.get("failed", ())]
     return "\n".join(lines)
