@@ -19,23 +19,45 @@ few seconds, later processes load it. With ``NUMBA_DISABLE_JIT=1`` everything ru
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, TypedDict
 
 import numba
 import numpy as np
 from numba import njit
 from numba.core import types as nbtypes
-from numba.cpython.unsafe.tuple import tuple_setitem
+from numba.cpython.unsafe.tuple import tuple_setitem as _tuple_setitem
 from numba.extending import intrinsic
-from numba.np.unsafe.ndarray import to_fixed_tuple
+from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import model
 
-JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+# The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
+# (float32 scalars, tuples of any length, arrays), which no single annotation describes. numba's stubs type an
+# intrinsic's call as its typing function's (``typingctx`` first) and as never returning, which holds only
+# outside compiled code; this module calls the intrinsics from compiled code, so it holds them as ``Any``.
+tuple_setitem: Any = _tuple_setitem
+to_fixed_tuple: Any = _to_fixed_tuple
+
+
+class JitOptions(TypedDict):
+    """The type of :data:`JIT`: keyword arguments of ``numba.njit``."""
+
+    cache: bool
+    error_model: Literal["python", "numpy"]
+    nogil: bool
+
+
+class InlineOptions(TypedDict):
+    """The type of :data:`INLINE`: keyword arguments of ``numba.njit``."""
+
+    inline: Literal["never", "always"]
+
+
+JIT: JitOptions = {"cache": True, "error_model": "numpy", "nogil": True}
 """numba options for everything here: cached on disk; division follows NumPy (no ZeroDivisionError
 checks, which stop LLVM from vectorising); the GIL is released."""
 
-INLINE = {"inline": "always"}
+INLINE: InlineOptions = {"inline": "always"}
 """numba compiles each function on its own and calls it through its own calling convention, which LLVM
 cannot inline; the model's functions are inlined at numba's level instead, so that the loop over envs
 is one straight stretch of arithmetic that LLVM can vectorise."""
@@ -47,13 +69,16 @@ EXP_LOW, EXP_HIGH = F32(-87.0), F32(88.0)
 
 
 @intrinsic
-def _int32_as_float32(typingctx: Any, bits: Any) -> Any:
+def _int32_as_float32_intrinsic(typingctx: Any, bits: Any) -> Any:
     """The float32 whose IEEE-754 bits are the int32 ``bits`` (a bit cast, no conversion)."""
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         return builder.bitcast(args[0], context.get_value_type(nbtypes.float32))
 
     return nbtypes.float32(nbtypes.int32), codegen
+
+
+_int32_as_float32: Any = _int32_as_float32_intrinsic
 
 
 @njit(**JIT, **INLINE)
@@ -100,7 +125,9 @@ def _uint32_operation(name: str) -> Any:
 
 mul32, add32, xor32, shr32 = (_uint32_operation(name) for name in ("mul", "add", "xor", "lshr"))
 
-if numba.config.DISABLE_JIT:  # intrinsics run only in compiled code: plain Python stands in for them
+# Intrinsics run only in compiled code: plain Python stands in for them. (numba.config sets its options at
+# import, from the environment, so they have no static type.)
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _int32_as_float32 = lambda bits: np.int32(bits).view(np.float32)  # noqa: E731
     mul32 = lambda a, b: np.uint32((int(a) * int(b)) & 0xFFFFFFFF)  # noqa: E731
     add32 = lambda a, b: np.uint32((int(a) + int(b)) & 0xFFFFFFFF)  # noqa: E731
