@@ -17,7 +17,7 @@ import math
 import types
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple, TypeGuard
 
 import numpy as np
 from numpy import where
@@ -164,7 +164,7 @@ def step(
 
     # Rest and sleep: half-hours without work. Alertness drains in those spent awake (fact 6);
     # blood pressure and alcohol fade through all of them (fact 5).
-    drain = 0.0
+    drain: Number = 0.0
     for offset in t.rest_offsets:
         drain += where(offset < a.drowsy, alertness_decay(s[TIME_SINCE_SLEPT] + offset), 0.0)
     s = replace(s, ALERTNESS, s[ALERTNESS] - drain)
@@ -245,8 +245,9 @@ def _check_number(name: str, value: Any, low: float, high: float, low_open: bool
         raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")
 
 
-def is_number(value: Any) -> bool:
-    """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool."""
+def is_number(value: object) -> TypeGuard[float]:
+    """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool (typed as ``float``, which
+    NumPy's scalars stand in for)."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
@@ -284,7 +285,7 @@ class Variable:
     name: str
     low: float = -math.inf
     high: float = math.inf
-    decay: float | str | None = None
+    decay: float | Literal["params"] | None = None
     description: str = ""
     anxiety_relief: float = 0.0
 
