@@ -224,7 +224,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             raise ResetNeeded("call reset() before reading the state of HeartPole")
         return dict(zip(self.dynamics.names, self._state.tolist()))
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start a new episode: everything at 0, then wake up (fact 1). ``options`` is accepted and unused.
 
         The episode's random numbers are keyed by one 64-bit draw from ``self.np_random``, as env 0 of a
@@ -292,6 +294,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._last_action, self._last_attack = name, attack
         self._heart_attacks += attack
         if self.render_mode in ("ansi", "human"):
+            assert self._state is not None  # step() checked it
             self._log.append((name, tuple(self._state.tolist()), attack))  # formatted only when rendered
             if self.render_mode == "human":
                 self.render()

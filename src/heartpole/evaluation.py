@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -102,7 +102,8 @@ def t_quantile_975(dof: int) -> float:
         (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / 384,
         (79 * z**9 + 776 * z**7 + 1482 * z**5 - 1920 * z**3 - 945 * z) / 92160,
     )
-    return z + sum(term / dof ** (k + 1) for k, term in enumerate(terms))
+    quantile: float = z + sum(term / dof ** (k + 1) for k, term in enumerate(terms))  # int ** int is Any
+    return quantile
 
 
 def standard_error(values: np.ndarray) -> float:
@@ -403,6 +404,14 @@ def _add_regret(result: EvaluationResult, env_id: str, env_kwargs: Mapping[str, 
     return result.with_regret(solution.expected_return, solution.error_bound)
 
 
+class _SharedOptions(TypedDict):
+    """The keyword arguments of :func:`evaluate` that :func:`compare` and :func:`baselines` pass on alike."""
+
+    num_envs: int | None
+    env_kwargs: Mapping[str, Any] | None
+    progress: bool | Progress
+
+
 def compare(
     policy_a: PolicyLike,
     policy_b: PolicyLike,
@@ -418,7 +427,7 @@ def compare(
 
     Arguments are :func:`evaluate`'s; both policies see the same seed and chunking.
     """
-    options = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
+    options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     a = evaluate(policy_a, env_id, episodes, seed, **options)
     b = evaluate(policy_b, env_id, episodes, seed, **options)
     return Comparison.of(a, b)
@@ -438,7 +447,7 @@ def baselines(
 
     ``optimal`` is left out where :mod:`heartpole.optimum` does not cover the variant."""
     policies: list[PolicyLike] = [*available_builtins(env_id, env_kwargs), *extra]
-    options = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
+    options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     return rank([evaluate(policy, env_id, episodes, seed, **options) for policy in policies])
 
 

@@ -15,7 +15,7 @@ import csv
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -27,6 +27,8 @@ from heartpole.render import landmarks
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+    from heartpole.env import HeartPole
 
 Policy = Callable[[np.ndarray], Any]
 """A policy: an observation batch ``(n, obs_dim)`` float32 in, ``n`` integer actions out."""
@@ -256,8 +258,9 @@ def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = No
 def trace_episode(policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any) -> EpisodeTrace:
     """Run one episode of ``env_id`` with ``policy`` from ``reset(seed=seed)`` and record it."""
     env = gym.make(env_id, **env_kwargs)
-    core = env.unwrapped
+    core = cast("HeartPole", env.unwrapped)
     observation, _ = env.reset(seed=seed)
+    actions: list[int]
     states, actions, attacks, rewards = [observation], [], [], []
     truncated = terminated = False
     while not (truncated or terminated):
@@ -519,13 +522,13 @@ def episode_frames(
     env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
     try:
         observation, _ = env.reset(seed=seed)
-        yield env.render()
+        yield cast(np.ndarray, env.render())  # render_mode="rgb_array"
         done, steps = False, 0
         while not done:
-            left = int(env.unwrapped.max_steps) - steps
+            left = int(cast("HeartPole", env.unwrapped).max_steps) - steps
             observation, _, terminated, truncated, _ = env.step(act(policy, observation, left))
             steps += 1
-            yield env.render()
+            yield cast(np.ndarray, env.render())
             done = terminated or truncated
     finally:
         env.close()
@@ -550,7 +553,7 @@ def _write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> in
     count = 0
     with imageio.get_writer(path, format="FFMPEG", fps=fps, codec="libx264", quality=7, macro_block_size=2) as writer:
         for frame in frames:
-            writer.append_data(frame)
+            writer.append_data(frame)  # type: ignore[attr-defined]  # typed as v3's base; v2's writers have it
             count += 1
     return count
 

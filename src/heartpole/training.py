@@ -60,7 +60,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -68,6 +68,9 @@ from gymnasium.vector import AutoresetMode
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
+
+if TYPE_CHECKING:
+    from heartpole.vector import HeartPoleVectorEnv
 
 TRAIN_EXTRA = "pip install 'heartpole[train]'"
 """How to install what training needs (Stable-Baselines3 with PyTorch, tqdm)."""
@@ -214,7 +217,7 @@ class HeartPoleSB3VecEnv(VecEnv):
                 autoreset_mode=AutoresetMode.SAME_STEP,
                 **dict(env_kwargs or {}),
             )
-        base = self.vector_env.unwrapped
+        base = cast("HeartPoleVectorEnv", self.vector_env.unwrapped)
         params = base.dynamics.params
         self.reward = reward
         self.penalty = float(params.heart_attack_penalty)
@@ -354,7 +357,7 @@ class HeartPoleSB3VecEnv(VecEnv):
     def get_images(self) -> Sequence[np.ndarray | None]:
         """One RGB frame per env when made with ``render_mode="rgb_array"``."""
         frames = self.vector_env.render()
-        return list(frames) if frames is not None else [None] * self.num_envs
+        return list(cast("tuple[np.ndarray, ...]", frames)) if frames is not None else [None] * self.num_envs
 
     def _indices(self, indices: VecEnvIndices) -> Sequence[int]:
         if indices is None:
@@ -812,7 +815,7 @@ def train_run(
     write_curve(folder / CURVE_FILE, trained.curve)
     from heartpole.policies import file_sha256
 
-    sidecar = {
+    sidecar: dict[str, Any] = {
         "algo": config.algo,
         "env_id": config.env_id,
         "seed": config.seed,

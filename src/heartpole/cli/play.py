@@ -15,9 +15,12 @@ import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO, cast
 
 from heartpole.cli.common import CommandError, format_table, positive_int, seed_int
+
+if TYPE_CHECKING:
+    from heartpole.env import HeartPole
 
 ORDER = 40
 
@@ -159,6 +162,7 @@ class KeyReader:
         import termios
         import tty
 
+        assert self.fd is not None  # is_terminal
         saved = termios.tcgetattr(self.fd)
         try:
             tty.setcbreak(self.fd)
@@ -170,6 +174,7 @@ class KeyReader:
         """The next key that is not a newline or carriage return; ``""`` at the end of input."""
         while True:
             if self.is_terminal:
+                assert self.fd is not None
                 data = os.read(self.fd, 1)
                 key = data.decode("latin-1")
             else:
@@ -213,7 +218,7 @@ def _new_game(env_id: str, steps: int, seed: int) -> Game:
         raise CommandError(f"env {env_id!r} is not a HeartPole env") from None
     if not hasattr(env.unwrapped, "dynamics"):
         raise CommandError(f"env {env_id!r} is not a HeartPole env")
-    game = Game(env=env, keys=action_keys([a.name for a in env.unwrapped.actions]))
+    game = Game(env=env, keys=action_keys([a.name for a in cast("HeartPole", env.unwrapped).actions]))
     game.observation, _ = env.reset(seed=seed)
     return game
 

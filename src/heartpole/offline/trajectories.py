@@ -9,12 +9,16 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from heartpole.offline.behaviour import EpsilonGreedy, check_actions, check_deterministic, sample
 from heartpole.policies import quiet_version_warnings
+
+if TYPE_CHECKING:
+    from heartpole.env import HeartPole
+    from heartpole.vector import HeartPoleVectorEnv
 
 INFO_KEYS = ("heart_attack_risk", "productivity", "heart_attack", "score")
 _INFO_DTYPES = {"heart_attack_risk": np.float32, "productivity": np.float32, "heart_attack": bool, "score": np.float32}
@@ -159,8 +163,9 @@ def _collect_chunk(
     with quiet_version_warnings():
         env = gym.make_vec(env_id, num_envs=size, vectorization_mode="vector_entry_point", **env_kwargs)
     try:
-        steps, num_actions = int(env.unwrapped.max_steps), behaviour.num_actions
-        penalty = float(env.unwrapped.dynamics.params.heart_attack_penalty)
+        base = cast("HeartPoleVectorEnv", env.unwrapped)
+        steps, num_actions = int(base.max_steps), behaviour.num_actions
+        penalty = float(base.dynamics.params.heart_attack_penalty)
         obs, _ = env.reset(seed=reset_seed)
         check_deterministic(behaviour.policy, obs)
         observations = np.empty((steps + 1, size, obs.shape[1]), dtype=np.float32)
@@ -204,6 +209,6 @@ def _penalty(dataset: Any) -> float:
         except gym.error.Error:
             return 100.0
     try:
-        return float(env.unwrapped.dynamics.params.heart_attack_penalty)
+        return float(cast("HeartPole", env.unwrapped).dynamics.params.heart_attack_penalty)
     finally:
         env.close()

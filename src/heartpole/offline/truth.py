@@ -11,13 +11,18 @@ score, heart attacks) and the value OPE estimators usually estimate: the expecte
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from heartpole.evaluation import chunk_seed, confidence_interval, plus_minus, policy_rng
 from heartpole.offline.behaviour import check_actions
 from heartpole.policies import Policy, load_policy, policy_name, quiet_version_warnings
+
+if TYPE_CHECKING:
+    from gymnasium.spaces import Discrete
+
+    from heartpole.vector import HeartPoleVectorEnv
 
 DEFAULT_GAMMA = 0.95
 
@@ -131,8 +136,9 @@ def _run(
     except gym.error.Error as error:
         raise ValueError(f"cannot make a vector env for {env_id!r}: {' '.join(str(error).split())}") from None
     try:
-        steps, num_actions = int(env.unwrapped.max_steps), int(env.single_action_space.n)
-        penalty = float(env.unwrapped.dynamics.params.heart_attack_penalty)
+        base = cast("HeartPoleVectorEnv", env.unwrapped)
+        steps, num_actions = int(base.max_steps), int(cast("Discrete", env.single_action_space).n)
+        penalty = float(base.dynamics.params.heart_attack_penalty)
         sums = {key: np.zeros(episodes) for key in ("value", "realized_value", "expected_return", "mean_return")}
         attacks = np.zeros(episodes)
         obs, _ = env.reset(seed=reset_seed)
