@@ -44,7 +44,7 @@ import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -59,6 +59,9 @@ from heartpole.model import (
     alertness_decay,
     productivity,
 )
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 Policy = Callable[[np.ndarray], np.ndarray]
 """A policy: observations ``(n, obs_dim)`` float32 -> integer actions ``(n,)``."""
@@ -660,14 +663,15 @@ def _zip_data(path: Path) -> dict[str, Any]:
     return data
 
 
-def _load_model(path: Path, algo: str) -> Any:
+def _load_model(path: Path, algo: str) -> BaseAlgorithm:
     try:
         import stable_baselines3 as sb3
     except ImportError:
         raise ValueError(
             f"{path}: loading a model needs Stable-Baselines3; install it with pip install 'heartpole[train]'"
         ) from None
-    algorithm = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}[algo]
+    algorithms: dict[str, type[BaseAlgorithm]] = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}
+    algorithm = algorithms[algo]
     try:
         return algorithm.load(path, device="cpu")
     except Exception as error:  # SB3 raises many kinds on a damaged file

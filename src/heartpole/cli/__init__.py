@@ -14,6 +14,7 @@ import os
 import pkgutil
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
 from heartpole.cli.common import CommandError
 
@@ -65,7 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
 
 
-def _command_modules() -> list:
+def _command_modules() -> list[ModuleType]:
     names = sorted(m.name for m in pkgutil.iter_modules(__path__) if m.name != "common")
     modules = [importlib.import_module(f"{__name__}.{name}") for name in names]
     modules = [m for m in modules if hasattr(m, "register")]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import io
 import json
 import math
@@ -16,6 +17,7 @@ from typing import Any, TypeVar
 
 from heartpole.cli.common import (
     CommandError,
+    Subparsers,
     atomic_write,
     format_table,
     markdown_table,
@@ -41,7 +43,7 @@ PROTOCOL = (
 T = TypeVar("T")
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add the ``evaluate``, ``compare`` and ``baselines`` subcommands."""
     _register_evaluate(subparsers)
     _register_compare(subparsers)
@@ -136,7 +138,7 @@ def run_baselines(args: argparse.Namespace) -> int:
     markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     for spec in extras:  # fail before the long run, not after it
-        _library(lambda spec=spec: load_policy(spec, args.env))
+        _library(functools.partial(load_policy, spec, args.env))
     builtins = _library(lambda: available_builtins(args.env))
     results = rank(_evaluate(spec, args) for spec in [*builtins, *extras])
     _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))

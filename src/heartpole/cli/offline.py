@@ -13,7 +13,7 @@ import signal
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-from heartpole.cli.common import CommandError, format_table, positive_int, raise_arg, seed_int
+from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
 from heartpole.progress import progress
 
 ORDER = 40
@@ -38,7 +38,7 @@ FOLDER_NOTE = (
 )
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add the ``dataset`` and ``ope`` subcommands."""
     _register_dataset(subparsers)
     _register_ope(subparsers)

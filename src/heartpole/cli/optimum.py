@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from heartpole.cli.common import CommandError, format_table, positive_int, seed_int
+from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
 
 ORDER = 15
 
@@ -27,7 +27,7 @@ provably never pays (refused with the reason otherwise: HeartPole-v1, heart_atta
 episodes). See docs/optimum.md."""
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add ``heartpole optimum``."""
     parser = subparsers.add_parser(
         "optimum",

@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, TextIO, cast
 
-from heartpole.cli.common import CommandError, format_table, positive_int, seed_int
+from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
 
 if TYPE_CHECKING:
     from heartpole.env import HeartPole
@@ -30,7 +30,7 @@ QUIT_KEYS = ("q", "Q", "\x04")  # q, or Ctrl-D (which arrives as a byte when the
 BAR_WIDTH = 16
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add ``play`` to the ``heartpole`` command."""
     parser = subparsers.add_parser(
         "play",

@@ -17,6 +17,7 @@ import numpy as np
 
 from heartpole.cli.common import (
     CommandError,
+    Subparsers,
     atomic_write,
     output_file,
     output_files,
@@ -32,7 +33,7 @@ DEFAULT_ENV = "HeartPole-v0"
 INSTALL_HINT = 'install the plot extra: pip install "heartpole[plot]"'
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add ``plot`` (with ``model``, ``episode`` and ``training``) and ``record`` to the ``heartpole`` command."""
     plot = subparsers.add_parser(
         "plot",

@@ -15,7 +15,7 @@ import sys
 import types
 from typing import Any, NoReturn
 
-from heartpole.cli.common import CommandError, format_table
+from heartpole.cli.common import CommandError, Subparsers, format_table
 
 ORDER = 20
 
@@ -59,7 +59,7 @@ examples:
 """
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add the ``train`` subcommand."""
     parser = subparsers.add_parser(
         "train",

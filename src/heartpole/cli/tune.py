@@ -13,7 +13,7 @@ import types
 from pathlib import Path
 from typing import Any, NoReturn
 
-from heartpole.cli.common import CommandError, format_table
+from heartpole.cli.common import CommandError, Subparsers, format_table
 from heartpole.cli.train import (
     RAY_EXTRA,
     missing_ray_modules,
@@ -50,7 +50,7 @@ examples:
 """
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: Subparsers) -> None:
     """Add the ``tune`` subcommand."""
     parser = subparsers.add_parser(
         "tune",

@@ -137,10 +137,10 @@ class Mixture:
     ) -> None:
         if not policies:
             raise ValueError("a mixture needs at least one policy")
-        weights = np.ones(len(policies)) if weights is None else np.asarray(weights, dtype=np.float64)
-        if weights.shape != (len(policies),) or (weights < 0).any() or weights.sum() <= 0:
+        shares = np.ones(len(policies)) if weights is None else np.asarray(weights, dtype=np.float64)
+        if shares.shape != (len(policies),) or (shares < 0).any() or shares.sum() <= 0:
             raise ValueError(f"weights must be {len(policies)} non-negative numbers with a positive sum")
-        self.policies, self.weights, self.num_actions = list(policies), weights / weights.sum(), int(num_actions)
+        self.policies, self.weights, self.num_actions = list(policies), shares / shares.sum(), int(num_actions)
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
         self.name = name or "+".join(policy_name(p) for p in self.policies)
 
