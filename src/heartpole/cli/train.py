@@ -13,7 +13,7 @@ import math
 import os
 import sys
 import types
-from typing import Any, NoReturn
+from typing import Any, NoReturn, overload
 
 from heartpole.cli.common import CommandError, Subparsers, format_table
 
@@ -112,6 +112,12 @@ def _one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
 # parsing
 
 
+@overload
+def whole_number(name: str, text: str, minimum: int) -> int: ...
+@overload
+def whole_number(name: str, text: None, minimum: int) -> None: ...
+@overload
+def whole_number(name: str, text: str | None, minimum: int) -> int | None: ...
 def whole_number(name: str, text: str | None, minimum: int) -> int | None:
     """``text`` as an integer >= ``minimum`` (``None`` stays ``None``); else a one-line :class:`CommandError`."""
     if text is None:

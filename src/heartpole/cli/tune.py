@@ -107,11 +107,11 @@ def build_settings(args: argparse.Namespace) -> Any:
         raise CommandError(f"--timesteps ({base.timesteps}) must be at least --n-envs ({base.n_envs})")
     return SearchSettings(
         base=base,
-        trials=int(trials),  # type: ignore[arg-type]
-        seeds=tuple(range(int(per_trial))),  # type: ignore[arg-type]
-        eval_episodes=int(whole_number("--eval-episodes", args.eval_episodes, 2)),  # type: ignore[arg-type]
-        eval_seed=int(whole_number("--eval-seed", args.eval_seed, 0)),  # type: ignore[arg-type]
-        search_seed=int(whole_number("--search-seed", args.search_seed, 0)),  # type: ignore[arg-type]
+        trials=int(trials),
+        seeds=tuple(range(int(per_trial))),
+        eval_episodes=int(whole_number("--eval-episodes", args.eval_episodes, 2)),
+        eval_seed=int(whole_number("--eval-seed", args.eval_seed, 0)),
+        search_seed=int(whole_number("--search-seed", args.search_seed, 0)),
     )
 
 
