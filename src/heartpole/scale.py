@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from heartpole import training
 from heartpole.progress import Progress
@@ -45,6 +45,9 @@ try:
     from ray import tune
 except ImportError as error:  # pragma: no cover - the CLI checks for the modules first
     raise ImportError(f"heartpole.scale needs Ray Tune: {RAY_EXTRA}") from error
+
+if TYPE_CHECKING:
+    from ray.tune.experiment import Trial
 
 OBJECTIVE = "objective"
 SEARCH_NAME = "search"
@@ -159,7 +162,7 @@ class _Bar(tune.Callback):
         failed = f", {self.failed} failed" if self.failed else ""
         return f"{self.label} {self.done}/{self.total}{failed}, best expected-risk return {best}"
 
-    def on_trial_complete(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+    def on_trial_complete(self, iteration: int, trials: list[Trial], trial: Trial, **info: Any) -> None:
         """A trial finished: pass its result on, redraw."""
         result = dict(trial.last_result or {})
         if self.on_result is not None and result:
@@ -168,11 +171,11 @@ class _Bar(tune.Callback):
             self.on_result(result)
         self._redraw(trials, trial, failed=False)
 
-    def on_trial_error(self, iteration: int, trials: list, trial: Any, **info: Any) -> None:
+    def on_trial_error(self, iteration: int, trials: list[Trial], trial: Trial, **info: Any) -> None:
         """A trial raised: redraw with it counted as failed."""
         self._redraw(trials, trial, failed=True)
 
-    def _redraw(self, trials: list, current: Any, failed: bool) -> None:
+    def _redraw(self, trials: list[Trial], current: Trial, failed: bool) -> None:
         # Count from all trials, so that a restored search starts from the trials it had finished.
         others = [t for t in trials if t is not current]
         self.failed = int(failed) + sum(t.status == "ERROR" for t in others)
@@ -493,7 +496,8 @@ def tune_search(
             tuner = tune.Tuner.restore(str(folder / SEARCH_NAME), trainable, resume_unfinished=True)
             # Tuner.restore takes no run configuration: give the restored one a bar that starts where
             # the interrupted search stopped.
-            tuner._local_tuner.get_run_config().callbacks = [bar]
+            # (_local_tuner is None only under Ray Client, a "ray://" address.)
+            tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
         else:
             folder.mkdir(parents=True, exist_ok=True)
             _write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())

@@ -29,20 +29,15 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
-from heartpole.offline.behaviour import (
-    EpsilonGreedy,
-    Mixture,
-    check_epsilon,
-    policy_name,
-)
+from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
-from heartpole.policies import Policy, env_dynamics, load_policy, quiet_version_warnings
+from heartpole.policies import Policy, env_dynamics, load_policy, policy_name, quiet_version_warnings
 
 AUTHOR = "HeartPole contributors"
 AUTHOR_EMAIL = "https://pypi.org/project/heartpole/"
@@ -277,12 +272,13 @@ def to_buffers(trajectories: Trajectories) -> list[Any]:
     ]
 
 
-def _resolve(policy: PolicyLike, env_id: str, seed: int, index: int) -> Policy:
+def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
+    """``policy`` (any of the components the caller was given) as a :data:`Policy`, or a ``ValueError``."""
     if isinstance(policy, str):
         return load_policy(policy, env_id, rng=policy_rng(seed, index))
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
-    return policy
+    return cast(Policy, policy)  # callable: that it maps observation batches to actions is the caller's promise
 
 
 def _rng(seed: int, *key: int) -> np.random.Generator:

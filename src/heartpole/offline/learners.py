@@ -83,7 +83,7 @@ def behaviour_cloning(
             batch = torch.as_tensor(rng.integers(0, len(x), batch_size))
             loss = torch.nn.functional.cross_entropy(network(x[batch]), y[batch])
             optimiser.zero_grad()
-            loss.backward()
+            loss.backward()  # type: ignore[no-untyped-call]  # torch leaves Tensor.backward unannotated
             optimiser.step()
             if step % 100 == 0:
                 losses.append(loss.item())

@@ -42,10 +42,10 @@ from heartpole.model import (
     heart_attack_risk,
     productivity,
 )
-from heartpole.offline.behaviour import action_probabilities, policy_name
+from heartpole.offline.behaviour import action_probabilities
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
-from heartpole.policies import Policy, load_policy
+from heartpole.policies import Policy, load_policy, policy_name
 
 ESTIMATORS = ("PDIS", "WPDIS", "FQE", "DR")
 DEFAULT_RIDGE = 1e-6
