@@ -6,6 +6,7 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/ruff check src tests benchmarks scripts examples
 .venv/bin/ruff format --check src tests benchmarks scripts examples
+.venv/bin/mypy
 if [ "$#" -eq 0 ]; then
   set -- -m "not slow"
 fi
