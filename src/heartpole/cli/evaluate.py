@@ -13,7 +13,7 @@ import json
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from heartpole.cli.common import (
     CommandError,
@@ -27,6 +27,9 @@ from heartpole.cli.common import (
     tell_normalization,
 )
 from heartpole.progress import progress
+
+if TYPE_CHECKING:
+    from heartpole.evaluation import Comparison, EvaluationResult
 
 ORDER = 10
 
@@ -50,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
     _register_baselines(subparsers)
 
 
-def _register_evaluate(subparsers: Any) -> None:
+def _register_evaluate(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "evaluate",
         help="evaluate a policy over many episodes, with 95%% intervals",
@@ -63,7 +66,7 @@ def _register_evaluate(subparsers: Any) -> None:
     parser.set_defaults(handler=run_evaluate)
 
 
-def _register_compare(subparsers: Any) -> None:
+def _register_compare(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "compare",
         help="compare two policies episode by episode (paired, common random numbers)",
@@ -77,7 +80,7 @@ def _register_compare(subparsers: Any) -> None:
     parser.set_defaults(handler=run_compare)
 
 
-def _register_baselines(subparsers: Any) -> None:
+def _register_baselines(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "baselines",
         help="the table of all built-in policies (and models) beside the published Table 1",
@@ -155,7 +158,7 @@ def run_baselines(args: argparse.Namespace) -> int:
 # running the library with clear errors
 
 
-def _evaluate(spec: str, args: argparse.Namespace) -> Any:
+def _evaluate(spec: str, args: argparse.Namespace) -> EvaluationResult:
     """Evaluate ``spec`` with the run options of ``args``, a progress bar on stderr, errors as one line."""
     from heartpole.evaluation import evaluate
     from heartpole.policies import BUILTIN_POLICIES, env_dynamics, load_policy
@@ -192,7 +195,7 @@ def _interval(value: float, interval: Sequence[float], digits: int) -> list[str]
     return [f"{value:.{digits}f}", f"[{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]"]
 
 
-def format_result(result: Any) -> str:
+def format_result(result: EvaluationResult) -> str:
     """One evaluation as a small table, with the interval-width ratio."""
     rows = [
         ["expected-risk return (ranks)", *_interval(result.expected_return, result.expected_ci95, 4)],
@@ -215,7 +218,7 @@ def format_result(result: Any) -> str:
     return "\n".join([header, format_table(["measure", "mean", "95% CI"], rows), *notes])
 
 
-def _solved_line(result: Any) -> str:
+def _solved_line(result: EvaluationResult) -> str:
     from heartpole.evaluation import SOLVED_REGRET
 
     verdict = "solved" if result.solved else "not solved"
@@ -225,7 +228,7 @@ def _solved_line(result: Any) -> str:
     )
 
 
-def format_comparison(comparison: Any) -> str:
+def format_comparison(comparison: Comparison) -> str:
     """Two evaluations side by side and their paired difference."""
     a, b = comparison.a, comparison.b
     rows = [
@@ -272,7 +275,7 @@ def format_comparison(comparison: Any) -> str:
     return "\n".join([header, table, note])
 
 
-def format_baselines(results: Sequence[Any]) -> str:
+def format_baselines(results: Sequence[EvaluationResult]) -> str:
     """The results table and the published Table 1, for the terminal."""
     from heartpole.evaluation import published_rows, table_rows
 
@@ -289,7 +292,7 @@ def format_baselines(results: Sequence[Any]) -> str:
     )
 
 
-def _optimal_note(results: Sequence[Any], markdown: bool = False) -> list[str]:
+def _optimal_note(results: Sequence[EvaluationResult], markdown: bool = False) -> list[str]:
     """``optimal`` minus ``expert`` with its paired interval, and the regret bar, if both were evaluated."""
     from heartpole.evaluation import SOLVED_REGRET, Comparison, plus_minus
 
@@ -305,7 +308,7 @@ def _optimal_note(results: Sequence[Any], markdown: bool = False) -> list[str]:
     return ["", *lines] if markdown else lines
 
 
-def baselines_markdown(results: Sequence[Any]) -> str:
+def baselines_markdown(results: Sequence[EvaluationResult]) -> str:
     """The Markdown file written by ``heartpole baselines``."""
     from heartpole.evaluation import PUBLISHED_EPISODES, published_rows, table_rows
 
@@ -355,7 +358,7 @@ CSV_FIELDS = (
 )
 
 
-def baselines_csv(results: Sequence[Any]) -> str:
+def baselines_csv(results: Sequence[EvaluationResult]) -> str:
     """The CSV file written by ``heartpole baselines``: our rows, then the published ones (blank where unknown)."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=CSV_FIELDS, lineterminator="\n")

@@ -11,10 +11,13 @@ import json
 import math
 import signal
 from collections.abc import Callable, Iterator
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
 from heartpole.progress import progress
+
+if TYPE_CHECKING:
+    from heartpole.offline.ope import OPEReport
 
 ORDER = 40
 T = TypeVar("T")
@@ -44,7 +47,7 @@ def register(subparsers: Subparsers) -> None:
     _register_ope(subparsers)
 
 
-def _register_dataset(subparsers: Any) -> None:
+def _register_dataset(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "dataset",
         help="record a Minari dataset of a policy's episodes (offline RL, off-policy evaluation)",
@@ -68,7 +71,7 @@ def _register_dataset(subparsers: Any) -> None:
     parser.set_defaults(handler=run_dataset)
 
 
-def _register_ope(subparsers: Any) -> None:
+def _register_ope(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "ope",
         help="off-policy evaluation of a policy from a dataset, scored against its true value",
@@ -164,7 +167,7 @@ def run_ope(args: argparse.Namespace) -> int:
     return 0
 
 
-def format_report(report: Any) -> str:
+def format_report(report: OPEReport) -> str:
     """The estimates as a table under a header naming the truth and its interval."""
     truth = report.truth
     low, high = truth.value_ci95

@@ -47,7 +47,7 @@ def register(subparsers: Subparsers) -> None:
     _add_record(subparsers)
 
 
-def _add_model(kinds: Any) -> None:
+def _add_model(kinds: Subparsers) -> None:
     parser = kinds.add_parser(
         "model",
         help="the tutorial's curves and the productivity heat map",
@@ -60,7 +60,7 @@ def _add_model(kinds: Any) -> None:
     parser.set_defaults(handler=plot_model)
 
 
-def _add_episode(kinds: Any) -> None:
+def _add_episode(kinds: Subparsers) -> None:
     parser = kinds.add_parser(
         "episode",
         help="one episode as a dashboard",
@@ -73,7 +73,7 @@ def _add_episode(kinds: Any) -> None:
     parser.set_defaults(handler=plot_episode)
 
 
-def _add_training(kinds: Any) -> None:
+def _add_training(kinds: Subparsers) -> None:
     parser = kinds.add_parser(
         "training",
         help="the learning curve of 'heartpole train'",
@@ -87,7 +87,7 @@ def _add_training(kinds: Any) -> None:
     parser.set_defaults(handler=plot_training)
 
 
-def _add_record(subparsers: Any) -> None:
+def _add_record(subparsers: Subparsers) -> None:
     parser = subparsers.add_parser(
         "record",
         help="a video of one episode (MP4 or GIF)",

@@ -13,9 +13,12 @@ import math
 import os
 import sys
 import types
-from typing import Any, NoReturn, overload
+from typing import TYPE_CHECKING, Any, NoReturn, overload
 
 from heartpole.cli.common import CommandError, Subparsers, format_table
+
+if TYPE_CHECKING:
+    from heartpole.training import TrainConfig
 
 ORDER = 20
 
@@ -156,7 +159,7 @@ def parse_seeds(text: str) -> list[int]:
     return seeds
 
 
-def build_config(args: argparse.Namespace) -> Any:
+def build_config(args: argparse.Namespace) -> TrainConfig:
     """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
     from dataclasses import replace
 
@@ -202,7 +205,7 @@ def _score_rate(text: str) -> float | str:
     return value
 
 
-def default_out(config: Any) -> str:
+def default_out(config: TrainConfig) -> str:
     """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others."""
     preset = os.path.splitext(os.path.basename(config.preset))[0]
     return f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
@@ -329,7 +332,7 @@ def _require_training_extra() -> None:
         )
 
 
-def _announce(config: Any, seeds: list[int] | None, out: Any) -> None:
+def _announce(config: TrainConfig, seeds: list[int] | None, out: Any) -> None:
     which = f"seeds {', '.join(map(str, seeds))}" if seeds is not None else f"seed {config.seed}"
     print(
         f"training {config.algo.upper()} ({config.preset} preset) on {config.env_id}: {config.timesteps:,} steps, "

@@ -11,7 +11,7 @@ import shutil
 import sys
 import types
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from heartpole.cli.common import CommandError, Subparsers, format_table
 from heartpole.cli.train import (
@@ -20,6 +20,9 @@ from heartpole.cli.train import (
     missing_training_modules,
     whole_number,
 )
+
+if TYPE_CHECKING:
+    from heartpole.scale import SearchSettings
 
 ORDER = 25
 SEARCHABLE = ("ppo", "a2c")
@@ -84,7 +87,7 @@ def _one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
     raise SystemExit(2)
 
 
-def build_settings(args: argparse.Namespace) -> Any:
+def build_settings(args: argparse.Namespace) -> SearchSettings:
     """The :class:`heartpole.scale.SearchSettings` of the arguments; bad values raise CommandError."""
     from heartpole.scale import SearchSettings
     from heartpole.training import preset_config
@@ -171,7 +174,7 @@ def _check_out(scale: Any, out: Path, resume: bool, force: bool) -> None:
         shutil.rmtree(out)
 
 
-def _announce(settings: Any, out: Path, resume: bool) -> str:
+def _announce(settings: SearchSettings, out: Path, resume: bool) -> str:
     base = settings.base
     verb = "resuming the search" if resume else "searching"
     return (
