@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import Any, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict, cast
 
 import numpy as np
 
@@ -44,6 +44,11 @@ from heartpole.policies import (
     policy_name,
     quiet_version_warnings,
 )
+
+if TYPE_CHECKING:
+    from gymnasium.vector import VectorEnv
+
+    from heartpole.vector import HeartPoleVectorEnv
 
 DEFAULT_EPISODES = 2000
 DEFAULT_NUM_ENVS = 10_000
@@ -381,7 +386,7 @@ def evaluate(
         for index, first in enumerate(range(0, episodes, chunk)):
             with _vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
                 parts.append(_run_episodes(env, act, name, chunk_seed(seed, index), tick))
-                max_steps = int(env.unwrapped.max_steps)
+                max_steps = int(cast("HeartPoleVectorEnv", env.unwrapped).max_steps)
     result = EvaluationResult.from_episodes(
         _Episodes.concatenate(parts),
         policy=name,
@@ -456,9 +461,9 @@ def rank(results: Iterable[EvaluationResult]) -> list[EvaluationResult]:
     return sorted(results, key=lambda result: -result.expected_return)
 
 
-def _run_episodes(env: Any, act: Policy, name: str, reset_seed: int, tick: Progress) -> _Episodes:
+def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick: Progress) -> _Episodes:
     """Run every env of the vector env ``env`` for one full episode (``max_steps`` steps after reset)."""
-    base = env.unwrapped
+    base = cast("HeartPoleVectorEnv", env.unwrapped)
     size, max_steps, dynamics = base.num_envs, int(base.max_steps), base.dynamics
     drinks_table = np.array([action.is_drink for action in dynamics.actions])
     sleeps_table = np.array([action.sleeps for action in dynamics.actions])
@@ -491,7 +496,7 @@ def _run_episodes(env: Any, act: Policy, name: str, reset_seed: int, tick: Progr
 
 
 @contextmanager
-def _vector_env(env_id: str, env_kwargs: dict[str, Any], size: int) -> Iterator[Any]:
+def _vector_env(env_id: str, env_kwargs: dict[str, Any], size: int) -> Iterator[VectorEnv]:
     """The native vector env of ``env_id`` with ``size`` envs, closed afterwards."""
     import gymnasium as gym
 

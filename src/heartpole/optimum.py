@@ -51,12 +51,15 @@ import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from heartpole.actions import V0_ACTIONS
 from heartpole.model import V0_VARIABLES, Params, alertness_decay, ballmer, heart_attack_risk, productivity
+
+if TYPE_CHECKING:
+    from heartpole.dynamics import Dynamics
 
 SOLVER_VERSION = 2
 DEFAULT_GRID = 400
@@ -108,7 +111,9 @@ class OptimumSolution:
         """Half-hours awake after which the policy always sleeps."""
         return int(self.thresholds.shape[1])
 
-    def sleeps(self, alertness: np.ndarray, time_since_slept: np.ndarray, decisions_left: Any) -> np.ndarray:
+    def sleeps(
+        self, alertness: np.ndarray, time_since_slept: np.ndarray, decisions_left: int | np.ndarray
+    ) -> np.ndarray:
         """Whether the optimal policy sleeps, elementwise (no-drink states; ``decisions_left`` in 1..max_steps)."""
         n = np.clip(np.asarray(decisions_left, dtype=np.int64), 0, self.params.max_steps)
         t = np.asarray(time_since_slept, dtype=np.int64)
@@ -667,7 +672,7 @@ class DrinkingSolution:
     intoxication: np.ndarray = field(repr=False)
     q: np.ndarray = field(repr=False)  # (4, alertness, intoxication, awake) float32
 
-    def policy(self, dynamics: Any) -> Callable[[np.ndarray], np.ndarray]:
+    def policy(self, dynamics: Dynamics) -> Callable[[np.ndarray], np.ndarray]:
         """This solution as a :data:`~heartpole.policies.Policy` for ``dynamics`` (v0's four actions)."""
         return _DrinkingPolicy(self, [dynamics.action_index(name) for name in DRINKING_ACTIONS])
 
@@ -816,7 +821,7 @@ def _changed_params(params: Params) -> dict[str, Any]:
     return {key: value for key, value in _params_dict(params).items() if defaults[key] != value}
 
 
-def _check_covered(env_id: str, dynamics: Any) -> None:
+def _check_covered(env_id: str, dynamics: Dynamics) -> None:
     names = [v.name for v in dynamics.variables]
     if tuple(dynamics.variables) != V0_VARIABLES:
         raise NotCoveredError(

@@ -63,7 +63,15 @@ from heartpole.model import (
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
-Policy = Callable[[np.ndarray], np.ndarray]
+    from heartpole.optimum import OptimumSolution
+
+Observations = np.ndarray
+"""A batch of observations, ``(n, obs_dim)`` float32 (one row per env, in observation order)."""
+Actions = np.ndarray
+"""A batch of actions, ``(n,)`` integers in ``0 .. num_actions - 1``."""
+DecisionsLeft = int | np.ndarray | None
+"""The decisions left in each env's episode (a number for all, ``(n,)`` integers, or ``None``: unknown)."""
+Policy = Callable[[Observations], Actions]
 """A policy: observations ``(n, obs_dim)`` float32 -> integer actions ``(n,)``."""
 
 SIDECAR_NAME = "heartpole.json"
@@ -311,7 +319,7 @@ class OptimalPolicy:
     name = "optimal"
     needs_decisions_left = True
 
-    def __init__(self, dynamics: Dynamics | None = None, solution: Any = None) -> None:
+    def __init__(self, dynamics: Dynamics | None = None, solution: OptimumSolution | None = None) -> None:
         from heartpole.optimum import optimum_for
 
         dynamics = dynamics or _v0_dynamics()
@@ -319,7 +327,7 @@ class OptimalPolicy:
         self.nothing = dynamics.action_index("do_nothing")
         self.sleep = dynamics.action_index("sleep")
 
-    def __call__(self, obs: np.ndarray, decisions_left: Any = None) -> np.ndarray:
+    def __call__(self, obs: Observations, decisions_left: DecisionsLeft = None) -> Actions:
         obs = _observations(obs)
         if decisions_left is None:
             raise ValueError(
@@ -340,7 +348,7 @@ def policy_name(policy: Any) -> str:
     return type(policy).__name__
 
 
-def act_batch(policy: Policy, obs: np.ndarray, decisions_left: Any) -> np.ndarray:
+def act_batch(policy: Policy, obs: Observations, decisions_left: DecisionsLeft) -> Actions:
     """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``."""
     if getattr(policy, "needs_decisions_left", False):
         return policy(obs, decisions_left)  # type: ignore[call-arg]
