@@ -44,7 +44,7 @@ import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -73,6 +73,15 @@ DecisionsLeft = int | np.ndarray | None
 """The decisions left in each env's episode (a number for all, ``(n,)`` integers, or ``None``: unknown)."""
 Policy = Callable[[Observations], Actions]
 """A policy: observations ``(n, obs_dim)`` float32 -> integer actions ``(n,)``."""
+
+
+class Predictor(Protocol):
+    """What :class:`SB3Policy` needs of a model: Stable-Baselines3's ``predict``."""
+
+    def predict(self, observation: np.ndarray, /, *, deterministic: bool = ...) -> tuple[np.ndarray, object]:
+        """The actions for ``observation`` and the next recurrent state (``None`` without one)."""
+        ...
+
 
 SIDECAR_NAME = "heartpole.json"
 VECNORMALIZE_NAME = "vecnormalize.pkl"
@@ -490,7 +499,7 @@ class ModelPolicy:
         name: the policy's name in results tables.
     """
 
-    def __init__(self, model: Any, normalizer: Any = None, name: str = "model") -> None:
+    def __init__(self, model: Predictor, normalizer: Any = None, name: str = "model") -> None:
         self.model = model
         self.name = name
         self.normalization = _normalization(normalizer)
