@@ -41,9 +41,10 @@ def enable_compilation_cache(folder: str | os.PathLike[str] | None = None) -> Pa
     Default: ``$HEARTPOLE_JAX_CACHE``, else ``$XDG_CACHE_HOME/heartpole/jax`` (``~/.cache/heartpole/jax``).
     """
     if folder is None:
-        folder = os.environ.get(CACHE_DIR_VARIABLE) or Path(
-            os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-        ) / "heartpole" / "jax"
+        folder = (
+            os.environ.get(CACHE_DIR_VARIABLE)
+            or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "heartpole" / "jax"
+        )
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
@@ -365,3 +366,152 @@ def learning_curve(ended: Any, settings: PPOSettings) -> list[dict[str, float]]:
             "score": float(scores[step][mask].mean()),
         })  # fmt: skip
     return rows
+
+
+# ------------------------------------------------------------------------------------------------------
+# heartpole train --backend jax: train, save as SB3 files, evaluate, summarise
+
+
+def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
+    """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's: ``model.zip``
+    (an SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics)."""
+    import torch
+
+    from heartpole import training
+
+    model, venv = training.build_model(config)
+    try:
+        state = model.policy.state_dict()
+        for torch_name, layers in (("mlp_extractor.policy_net", "actor"), ("mlp_extractor.value_net", "critic")):
+            for i, (weight, bias) in enumerate(runner.network[layers][:-1]):
+                state[f"{torch_name}.{2 * i}.weight"] = torch.as_tensor(np.asarray(weight).T.copy())
+                state[f"{torch_name}.{2 * i}.bias"] = torch.as_tensor(np.asarray(bias).copy())
+        for torch_name, layers in (("action_net", "actor"), ("value_net", "critic")):
+            weight, bias = runner.network[layers][-1]
+            state[f"{torch_name}.weight"] = torch.as_tensor(np.asarray(weight).T.copy())
+            state[f"{torch_name}.bias"] = torch.as_tensor(np.asarray(bias).copy())
+        model.policy.load_state_dict(state)
+        model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps
+        model.save(folder / training.MODEL_FILE)
+        if isinstance(venv, training.VecNormalize):
+            for stats, ours in ((venv.obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
+                stats.mean = np.asarray(ours.mean, dtype=np.float64).reshape(stats.mean.shape)
+                stats.var = np.asarray(ours.var, dtype=np.float64).reshape(stats.var.shape)
+                stats.count = float(ours.count)
+            venv.training = False
+            venv.save(str(folder / training.VECNORMALIZE_FILE))
+    finally:
+        venv.close()
+
+
+def _seed_result(
+    config: Any, runner: Runner, curve: list[dict[str, float]], folder: Path, timings: dict[str, float],
+    eval_episodes: int, eval_seed: int, progress: bool, final_folder: Path,
+) -> dict[str, Any]:  # fmt: skip
+    """Write one seed's files into ``folder``, evaluate the saved model as ``heartpole evaluate`` would,
+    and return its line of the summary (:func:`heartpole.training.run_summary`)."""
+    from heartpole import training
+    from heartpole.evaluation import evaluate
+    from heartpole.policies import load_policy
+
+    started = time.perf_counter()
+    folder.mkdir(parents=True, exist_ok=True)
+    export_sb3(config, runner, folder)
+    training.write_curve(folder / training.CURVE_FILE, curve)
+    sidecar = {
+        "algo": "ppo",
+        "backend": "jax",
+        "env_id": config.env_id,
+        "seed": config.seed,
+        "timesteps": config.timesteps,
+        "preset": config.preset,
+        "policy": "MlpPolicy",
+        "config": config.to_dict(),
+        "vecnormalize": training.VECNORMALIZE_FILE if config.normalize_observations or config.normalize_rewards
+        else None,
+        **{key: round(value, 2) for key, value in timings.items()},
+        "versions": {**training._versions(), "jax": jax.__version__},
+    }  # fmt: skip
+    training._write_json(folder / training.SIDECAR_FILE, sidecar)
+    policy = load_policy(str(folder / training.MODEL_FILE), config.env_id, env_kwargs=dict(config.env_kwargs))
+    policy.name = str(final_folder / training.MODEL_FILE)  # type: ignore[attr-defined]
+    result = evaluate(policy, config.env_id, episodes=eval_episodes, seed=eval_seed,
+                      env_kwargs=dict(config.env_kwargs), progress=progress)  # fmt: skip
+    evaluation = result.to_dict()
+    training._write_json(folder / training.EVALUATION_FILE, evaluation)
+    own = time.perf_counter() - started
+    wall = timings["compile_seconds"] + timings["train_seconds"] + own
+    sidecar.update(eval_seconds=round(own, 2), wall_seconds=round(wall, 2))
+    training._write_json(folder / training.SIDECAR_FILE, sidecar)
+    return training.run_summary(config, evaluation, timings["train_seconds"], wall) | {
+        "compile_seconds": round(timings["compile_seconds"], 2)
+    }
+
+
+def train_seeds(
+    config: Any,
+    seeds: Sequence[int] | None,
+    folder: str | os.PathLike[str],
+    *,
+    eval_episodes: int = 2000,
+    eval_seed: int = 0,
+    progress: bool = False,
+    on_run: Callable[[dict[str, Any]], None] | None = None,
+    final_folder: str | os.PathLike[str] | None = None,
+    on_compiled: Callable[[float], None] | None = None,
+) -> dict[str, Any]:
+    """Train ``config`` (PPO) for every seed in one compiled, vmapped call, then evaluate each seed.
+
+    With ``seeds=None`` one run of ``config.seed`` is written into ``folder`` itself and its summary
+    returned (as :func:`heartpole.training.train_run`); otherwise each seed goes to ``folder/seed_<s>/``
+    and ``folder/summary.json`` aggregates them (as :func:`heartpole.training.train_seeds`). Timings:
+    ``compile_seconds`` (tracing and compiling, or loading from the persistent cache) and
+    ``train_seconds`` (the compiled call, all seeds together) are kept apart. ``on_compiled`` is called
+    with the compile time before training starts.
+    """
+    from heartpole import training
+
+    settings = PPOSettings.from_config(config)
+    single = seeds is None
+    seeds = [int(config.seed)] if seeds is None else [int(seed) for seed in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ValueError(f"give distinct seeds, got {list(seeds)}")
+    folder, final = Path(folder), Path(final_folder if final_folder is not None else folder)
+    enable_compilation_cache()
+    env = HeartPoleJax.from_id(config.env_id, **dict(config.env_kwargs))
+    keys = jax.vmap(jax.random.key)(jnp.asarray(seeds, dtype=jnp.uint32))
+    started = time.perf_counter()
+    compiled = jax.jit(jax.vmap(make_train(env, env.default_params, settings))).lower(keys).compile()
+    compile_seconds = time.perf_counter() - started
+    if on_compiled is not None:
+        on_compiled(compile_seconds)
+    started = time.perf_counter()
+    runners, ended = jax.block_until_ready(compiled(keys))
+    timings = {"compile_seconds": compile_seconds, "train_seconds": time.perf_counter() - started}
+    runs = []
+    for i, seed in enumerate(seeds):
+        pick = lambda tree, i=i: jax.tree_util.tree_map(lambda x: x[i], tree)  # noqa: E731
+        seed_config = replace(config, seed=seed)
+        where = (folder, final) if single else (folder / f"seed_{seed}", final / f"seed_{seed}")
+        run = _seed_result(seed_config, pick(runners), learning_curve(pick(ended), settings), where[0], timings,
+                           eval_episodes, eval_seed, progress, where[1])  # fmt: skip
+        runs.append(run)
+        if on_run is not None:
+            on_run(run)
+    if single:
+        return runs[0]
+    summary = {
+        "config": replace(config, seed=seeds[0]).to_dict() | {"seed": None},
+        "backend": "jax",
+        "seeds": seeds,
+        "eval_episodes": eval_episodes,
+        "eval_seed": eval_seed,
+        **{key: round(value, 2) for key, value in timings.items()},
+        "runs": runs,
+        "aggregate": training.aggregate(runs),
+        "solved_bar": {"heart_attacks_per_episode_at_most": training.SOLVED_HEART_ATTACKS,
+                       "score_at_least": training.SOLVED_SCORE},
+        "solved_seeds": sum(run["solved"] for run in runs),
+    }  # fmt: skip
+    training._write_json(folder / training.SUMMARY_FILE, summary)
+    return summary
