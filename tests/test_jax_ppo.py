@@ -116,3 +116,8 @@ def test_cli_bad_backend_and_algorithm(capsys, tmp_path) -> None:
     assert main(["train", "--backend", "jax", "--algo", "dqn", "--out", str(tmp_path / "b")]) == 2
     assert "PPO only" in capsys.readouterr().err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_training_runs_in_whole_update_pieces() -> None:
+    assert ppo.chunk_size(196) == 7 and ppo.chunk_size(197) == 1 and ppo.chunk_size(5) == 1
+    assert all(n % ppo.chunk_size(n) == 0 and n // ppo.chunk_size(n) >= min(n, 20) for n in range(1, 400))

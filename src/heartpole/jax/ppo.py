@@ -232,6 +232,15 @@ def make_train(env: HeartPoleJax, params: EnvParams, s: PPOSettings) -> Callable
     ``metrics`` holds, per update and env step, whether an episode ended there and its true return, heart
     attacks and final score (for the learning curve).
     """
+    start, run = make_parts(env, params, s, s.num_updates)
+    return lambda key: run(start(key))
+
+
+def make_parts(
+    env: HeartPoleJax, params: EnvParams, s: PPOSettings, updates: int
+) -> tuple[Callable[[jax.Array], Runner], Callable[[Runner], tuple[Runner, Any]]]:
+    """``start(key) -> runner`` and ``run(runner) -> (runner, metrics)`` doing ``updates`` updates: a run
+    in pieces, so that the host can show progress between them (see :func:`make_train`)."""
     n_envs, obs_dim = s.n_envs, env.num_variables
     penalty = params.heart_attack_penalty
     risk_floor = np.float32(heart_attack_risk(0.0, float(params.heart_attack_proclivity)))
@@ -337,7 +346,7 @@ def make_train(env: HeartPoleJax, params: EnvParams, s: PPOSettings) -> Callable
         (network, adam, _), _ = jax.lax.scan(epoch, (runner.network, runner.adam, epoch_key), None, s.n_epochs)
         return runner._replace(network=network, adam=adam, key=key), ended
 
-    def train(key: jax.Array) -> tuple[Runner, Any]:
+    def start(key: jax.Array) -> Runner:
         key, network_key, reset_key = jax.random.split(key, 3)
         network = init_network(network_key, obs_dim, env.num_actions, s.net_arch)
         obs, env_state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(reset_key, n_envs), params)
@@ -347,9 +356,17 @@ def make_train(env: HeartPoleJax, params: EnvParams, s: PPOSettings) -> Callable
             network, adam_init(network), env_state, obs, obs_stats, RunningStats.start((1,)),
             jnp.zeros(n_envs), jnp.zeros(n_envs), jnp.zeros(n_envs, jnp.int32), key,
         )  # fmt: skip
-        return jax.lax.scan(update, runner, None, s.num_updates)
+        return runner
 
-    return train
+    def run(runner: Runner) -> tuple[Runner, Any]:
+        return jax.lax.scan(update, runner, None, updates)
+
+    return start, run
+
+
+def chunk_size(updates: int, pieces: int = 20) -> int:
+    """The largest divisor of ``updates`` that makes at least ``pieces`` pieces (1 if ``updates`` is prime)."""
+    return max(d for d in range(1, max(1, updates // pieces) + 1) if updates % d == 0)
 
 
 def learning_curve(ended: Any, settings: PPOSettings) -> list[dict[str, float]]:
@@ -448,6 +465,15 @@ def _seed_result(
     }
 
 
+def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Any:
+    """A tqdm bar over all seeds' env steps (shown as :class:`heartpole.training.ProgressBar` shows its own)."""
+    from tqdm import tqdm
+
+    disable = True if not show else (False if os.environ.get("HEARTPOLE_PROGRESS") == "1" else None)
+    name = f"training ppo (jax) seed{'s' if len(seeds) > 1 else ''} {','.join(map(str, seeds))}"
+    return tqdm(total=total, desc=name, unit="step", unit_scale=True, disable=disable)
+
+
 def train_seeds(
     config: Any,
     seeds: Sequence[int] | None,
@@ -466,7 +492,8 @@ def train_seeds(
     returned (as :func:`heartpole.training.train_run`); otherwise each seed goes to ``folder/seed_<s>/``
     and ``folder/summary.json`` aggregates them (as :func:`heartpole.training.train_seeds`). Timings:
     ``compile_seconds`` (tracing and compiling, or loading from the persistent cache) and
-    ``train_seconds`` (the compiled call, all seeds together) are kept apart. ``on_compiled`` is called
+    ``train_seconds`` (the compiled calls, all seeds together) are kept apart. Training runs in about 20
+    compiled pieces of whole updates, between which the progress bar moves. ``on_compiled`` is called
     with the compile time before training starts.
     """
     from heartpole import training
@@ -480,13 +507,23 @@ def train_seeds(
     enable_compilation_cache()
     env = HeartPoleJax.from_id(config.env_id, **dict(config.env_kwargs))
     keys = jax.vmap(jax.random.key)(jnp.asarray(seeds, dtype=jnp.uint32))
+    chunk = chunk_size(settings.num_updates)
+    start, run = make_parts(env, env.default_params, settings, chunk)
     started = time.perf_counter()
-    compiled = jax.jit(jax.vmap(make_train(env, env.default_params, settings))).lower(keys).compile()
+    start = jax.jit(jax.vmap(start)).lower(keys).compile()
+    runners = start(keys)
+    run = jax.jit(jax.vmap(run)).lower(runners).compile()
     compile_seconds = time.perf_counter() - started
     if on_compiled is not None:
         on_compiled(compile_seconds)
     started = time.perf_counter()
-    runners, ended = jax.block_until_ready(compiled(keys))
+    pieces = []
+    with _progress_bar(settings.num_updates * settings.rollout * len(seeds), seeds, progress) as bar:
+        for _ in range(settings.num_updates // chunk):
+            runners, ended = jax.block_until_ready(run(runners))
+            pieces.append(ended)
+            bar.update(chunk * settings.rollout * len(seeds))
+    ended = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs, axis=1), *pieces)
     timings = {"compile_seconds": compile_seconds, "train_seconds": time.perf_counter() - started}
     runs = []
     for i, seed in enumerate(seeds):
