@@ -86,8 +86,10 @@ def main() -> None:
     except ImportError:
         print("gymnax is not installed here: no gymnax CartPole column")
     else:
+        from importlib.metadata import version
+
         cartpole, cartpole_params = gymnax.make("CartPole-v1")
-        rows.append((f"CartPole-v1, gymnax {gymnax.__version__} (jit, vmap, scan)",
+        rows.append((f"CartPole-v1, gymnax {version('gymnax')} (jit, vmap, scan)",
                      *jax_env_speed(cartpole, cartpole_params, n, steps, repeats)))  # fmt: skip
     with heartpole.policies.quiet_version_warnings():
         native = lambda k: gym.make_vec("HeartPole-v0", num_envs=k, vectorization_mode="vector_entry_point")  # noqa: E731

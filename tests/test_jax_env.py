@@ -30,7 +30,7 @@ def rollout(env: HeartPoleJax, params: EnvParams, policy, key: jax.Array, episod
 
         def body(carry, step_key):
             obs, state = carry
-            obs, state, reward, _, info = env.step(step_key, state, policy(obs[None], jnp)[0], params)
+            obs, state, reward, _, _, info = env.step(step_key, state, policy(obs[None], jnp)[0], params)
             return (obs, state), (reward, info["heart_attack"], info["heart_attack_risk"], info["score"])
 
         _, (rewards, attacks, risks, scores) = jax.lax.scan(body, (obs, state), jax.random.split(key, steps))
@@ -115,14 +115,17 @@ def test_reset_and_step_shapes_dtypes_and_spaces() -> None:
     assert bool(space.contains(obs)) and 0.7 <= float(obs[ALERTNESS]) <= 1.3 and not obs[1:].any()
     action = env.action_space(params).sample(jax.random.key(1))
     assert action.dtype == jnp.int32 and bool(env.action_space(params).contains(action))
-    obs, state, reward, done, info = jax.jit(env.step)(jax.random.key(2), state, action, params)
+    obs, state, reward, terminated, truncated, info = jax.jit(env.step)(jax.random.key(2), state, action, params)
     assert obs.shape == (6,) and obs.dtype == reward.dtype == jnp.float32 and reward.shape == ()
-    assert done.dtype == jnp.bool_ and not bool(done) and int(state.time) == 1 and bool(space.contains(obs))
-    assert set(info) >= {"truncated", "terminated", "discount", "final_obs", "heart_attack", "heart_attack_risk",
-                         "productivity", "score"}  # fmt: skip
+    assert terminated.dtype == truncated.dtype == jnp.bool_ and not bool(terminated | truncated)
+    assert int(state.time) == 1 and bool(space.contains(obs))
+    expected = {"truncated", "terminated", "discount", "final_observation", "heart_attack", "heart_attack_risk"}
+    assert set(info) >= expected | {"productivity", "score"}
     assert info["heart_attack_risk"].dtype == info["score"].dtype == info["productivity"].dtype == jnp.float32
     assert env.get_obs(state) is state.variables
-    np.testing.assert_array_equal(env.step_env(jax.random.key(3), state, 0, params)[1].time, 2)
+    stepped = env.step_env(jax.random.key(3), state, 0, params)
+    assert len(stepped) == 5 and int(stepped[1].time) == 2 and not bool(stepped[3])
+    np.testing.assert_array_equal(env.observe(jax.random.key(4), stepped[1], 0, params), stepped[0])
 
 
 def test_default_params_equal_the_dynamics() -> None:
@@ -139,17 +142,19 @@ def test_truncation_at_the_limit_and_autoreset() -> None:
 
     def body(carry, key):
         obs, state = carry
-        obs, state, reward, done, info = env.step(key, state, 1, params)
-        return (obs, state), (obs, state.time, done, info)
+        obs, state, reward, terminated, truncated, info = env.step(key, state, 1, params)
+        return (obs, state), (obs, state.time, terminated | truncated, info)
 
     _, (observations, times, done, info) = jax.lax.scan(body, (obs, state), jax.random.split(jax.random.key(1), 12))
     np.testing.assert_array_equal(done, [False] * 4 + [True] + [False] * 4 + [True] + [False] * 2)
-    np.testing.assert_array_equal(info["truncated"], done)
+    np.testing.assert_array_equal(info["truncated"], done)  # done is truncation only
     assert not info["terminated"].any() and (info["discount"] == 1.0).all()
     np.testing.assert_array_equal(times, [1, 2, 3, 4, 0, 1, 2, 3, 4, 0, 1, 2])
-    # After the limit the observation is the new episode's; the episode's last one is in final_obs.
-    assert (observations[done][:, 1:] == 0).all() and (info["final_obs"][done][:, TIME_ELAPSED] >= 5).all()
-    np.testing.assert_allclose(info["final_obs"][~done], observations[~done], rtol=1e-6)  # XLA may fuse differently
+    # After the limit the observation is the new episode's; the episode's last one is in final_observation.
+    assert (observations[done][:, 1:] == 0).all() and (info["final_observation"][done][:, TIME_ELAPSED] >= 5).all()
+    np.testing.assert_allclose(
+        info["final_observation"][~done], observations[~done], rtol=1e-6
+    )  # XLA may fuse differently
 
 
 def test_jit_and_vmap_over_keys_and_params() -> None:
@@ -165,7 +170,7 @@ def test_jit_and_vmap_over_keys_and_params() -> None:
 
     def body(carry, key):
         obs, states, attacks = carry
-        obs, states, _, _, info = step(jax.random.split(key, 64), states, 1, batch)
+        obs, states, _, _, _, info = step(jax.random.split(key, 64), states, 1, batch)
         return (obs, states, attacks + info["heart_attack"]), None
 
     (_, _, attacks), _ = jax.lax.scan(body, (obs, states, jnp.zeros(64, jnp.int32)), jax.random.split(keys[0], 50))
@@ -227,3 +232,19 @@ def test_equal_in_distribution_to_the_numpy_env(env_id: str, policy) -> None:
         assert gap <= TOLERANCE_SE * se + 1e-6 * abs(b.mean()), (
             f"{name}: JAX {a.mean():.5f} vs NumPy {b.mean():.5f}, se {se:.2e}"
         )
+
+
+def test_gymnax_wrappers_accept_it() -> None:
+    """With gymnax installed (it is not an extra: gymnax 1.0.1 pins gymnasium<1.4), its LogWrapper counts
+    HeartPole's episodes, which end by truncation."""
+    pytest.importorskip("gymnax", reason="gymnax is not installed (optional; it pins gymnasium<1.4)")
+    from gymnax.wrappers.purerl import FlattenObservationWrapper, LogWrapper
+
+    env, params = make("HeartPole-v0", max_steps=3)
+    env = LogWrapper(FlattenObservationWrapper(env))
+    obs, state = env.reset(jax.random.key(0), params)
+    step = jax.jit(env.step)
+    for i in range(3):
+        obs, state, reward, terminated, truncated, info = step(jax.random.key(i + 1), state, 1, params)
+    assert bool(truncated) and not bool(terminated) and bool(info["returned_episode"])
+    assert int(info["returned_episode_lengths"]) == 3 and obs.shape == (6,)

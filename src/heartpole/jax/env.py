@@ -89,17 +89,16 @@ class EnvParams:
 class HeartPoleJax:
     """HeartPole with gymnax's ``Environment`` API: pure functions of keys, states and parameters.
 
-    ``reset(key, params) -> (obs, state)`` and ``step(key, state, action, params) -> (obs, state, reward,
-    done, info)``, both jittable and ``vmap``-able over keys, states, actions and parameters. ``step``
-    resets an episode that ended within the same call (gymnax's autoreset): ``obs`` and ``state`` are then
-    the new episode's. Episodes never terminate (nobody dies of HeartPole's heart attacks); they are
-    truncated after ``params.max_steps_in_episode`` decisions, so ``done`` is a truncation. ``info`` tells
-    the two apart and keeps what a learner needs to bootstrap through the time limit:
-
-    * ``truncated`` (= ``done``), ``terminated`` (always ``False``), ``discount`` (always 1.0: the episode
-      did not end in an absorbing state);
-    * ``final_obs``: the observation the step reached, before any reset (as Gymnasium's ``final_obs``);
-    * ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``: as the NumPy envs' info.
+    The API of gymnax 1.0: ``reset(key, params) -> (obs, state)`` and ``step(key, state, action, params)
+    -> (obs, state, reward, terminated, truncated, info)``, both jittable and ``vmap``-able over keys,
+    states, actions and parameters; ``step_env`` (no reset) returns ``(obs, state, reward, terminated,
+    info)``. ``step`` resets an episode that ended within the same call (gymnax's autoreset): ``obs`` and
+    ``state`` are then the new episode's, and ``info["final_observation"]`` is the observation the episode
+    ended on, which a learner needs to bootstrap through the time limit. Episodes never terminate (nobody
+    dies of HeartPole's heart attacks): ``terminated`` is always ``False``; they are truncated after
+    ``params.max_steps_in_episode`` decisions. ``info`` also holds ``terminated``, ``truncated``,
+    ``discount`` (always 1.0) and, as the NumPy envs' info, ``heart_attack``, ``heart_attack_risk``,
+    ``productivity`` and ``score``. gymnax's wrappers (``LogWrapper`` ...) accept the env.
 
     Everything is float32 (actions int32).
 
@@ -144,15 +143,19 @@ class HeartPoleJax:
 
     def step(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams | None = None
-    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """One decision and the half-hour after it; an episode that reaches its step limit restarts at once."""
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """One decision and the half-hour after it: ``(obs, state, reward, terminated, truncated, info)``;
+        an episode that reaches its step limit restarts at once."""
         params = self.default_params if params is None else params
         key_step, key_reset = jax.random.split(key)
-        obs_step, state_step, reward, done, info = self.step_env(key_step, state, action, params)
+        obs_step, state_step, reward, terminated, info = self.step_env(key_step, state, action, params)
+        truncated = self.is_truncated(state_step, params)
+        done = jnp.logical_or(terminated, truncated)
         obs_reset, state_reset = self.reset_env(key_reset, params)
         state = jax.tree_util.tree_map(lambda new, old: jnp.where(done, new, old), state_reset, state_step)
         obs = jnp.where(done, obs_reset, obs_step)
-        return obs, state, reward, done, info
+        info = {**info, "terminated": terminated, "truncated": truncated, "final_observation": obs_step}
+        return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
         """:func:`heartpole.model.initial_state` with one uniform draw from ``key``."""
@@ -165,7 +168,8 @@ class HeartPoleJax:
     def step_env(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """:func:`heartpole.model.step` with ``len(state) + 2`` uniform draws from ``key``; no reset."""
+        """:func:`heartpole.model.step` with ``len(state) + 2`` uniform draws from ``key``, no reset:
+        ``(obs, state, reward, terminated, info)``."""
         n = self.num_variables
         u = jax.random.uniform(key, (n + 2,), jnp.float32)
         s = tuple(state.variables[v] for v in range(n))
@@ -173,27 +177,34 @@ class HeartPoleJax:
             s, self._effects(params, action), tuple(u[i] for i in range(n + 2)), self._tables(params)
         )
         state = EnvState(variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
-        done = self.is_terminal(state, params)
-        obs = self.get_obs(state)
         info = {
-            "truncated": done,
-            "terminated": jnp.bool_(False),
-            "discount": jnp.float32(1.0),
-            "final_obs": obs,
+            "discount": self.discount(state, params),
             "heart_attack": attack,
             "heart_attack_risk": jnp.float32(risk),
             "productivity": jnp.float32(worked),
             "score": jnp.float32(score),
         }
-        return obs, state, jnp.float32(reward), done, info
+        return self.get_obs(state), state, jnp.float32(reward), self.is_terminated(state, params), info
 
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
         """The observation: the state variables in observation order (float32)."""
         return state.variables
 
-    def is_terminal(self, state: EnvState, params: EnvParams) -> jax.Array:
-        """Whether the episode has ended: its step limit is reached (a truncation, never a death)."""
+    def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
+        """gymnax 1.0's observation hook: :meth:`get_obs`."""
+        return self.get_obs(state, params, key)
+
+    def is_truncated(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """Whether the episode has reached its step limit."""
         return state.time >= params.max_steps_in_episode
+
+    def is_terminated(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """Always ``False``: nobody dies of HeartPole's heart attacks."""
+        return jnp.bool_(False)
+
+    def is_terminal(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """gymnax's older name of :meth:`is_terminated` (time limits excluded)."""
+        return self.is_terminated(state, params)
 
     def discount(self, state: EnvState, params: EnvParams) -> jax.Array:
         """Always 1.0: HeartPole's episodes end by truncation, never in an absorbing state."""

@@ -6,7 +6,7 @@ gradient's global norm clipped, GAE, per-minibatch advantage normalisation, the 
 entropy bonus; VecNormalize's running observation and discounted-return statistics (the latter capped at
 ``reward_stats_window`` samples, as :class:`heartpole.training.RewardStatsWindow`); the training reward
 of :class:`heartpole.training.TrainingReward`; and bootstrapping through the time limit from the value of
-the episode's last observation (``info["final_obs"]``), as SB3 does for ``TimeLimit.truncated``.
+the episode's last observation (``info["final_observation"]``), as SB3 does for ``TimeLimit.truncated``.
 
 :func:`train_seeds` trains several seeds in one compiled call and writes what ``heartpole train`` writes
 for SB3 (the trained weights are saved as an SB3 ``model.zip`` plus ``vecnormalize.pkl``, so that
@@ -258,7 +258,7 @@ def make_parts(
         if s.score_rate is None:
             score_part = env_reward + penalty * attack
         else:
-            half_hours = info["final_obs"][:, TIME_ELAPSED] - before[:, TIME_ELAPSED]
+            half_hours = info["final_observation"][:, TIME_ELAPSED] - before[:, TIME_ELAPSED]
             score_part = (info["productivity"] - s.score_rate * half_hours) / s.horizon
         if s.expected_risk:
             return score_part - penalty * (info["heart_attack_risk"] - risk_floor)
@@ -270,9 +270,10 @@ def make_parts(
         logits, value = policy_and_value(runner.network, seen)
         action = jax.random.categorical(action_key, logits)
         log_prob = jax.nn.log_softmax(logits)[jnp.arange(n_envs), action]
-        obs, env_state, env_reward, done, info = step_envs(
+        obs, env_state, env_reward, terminated, truncated, info = step_envs(
             jax.random.split(step_key, n_envs), runner.env_state, action, params
         )
+        done = terminated | truncated
         reward = training_reward(env_reward, runner.obs, info)
         obs_stats = runner.obs_stats.update(obs) if s.normalize_observations else runner.obs_stats
         return_stats, discounted = runner.return_stats, runner.discounted
@@ -284,8 +285,8 @@ def make_parts(
             reward = jnp.clip(reward / jnp.sqrt(return_stats.var[0] + 1e-8), -s.clip_reward, s.clip_reward)
             discounted = jnp.where(done, 0.0, discounted)
         # Truncation is not termination: bootstrap from the value of the episode's last observation.
-        _, final_value = policy_and_value(runner.network, normalize(info["final_obs"], obs_stats))
-        reward = reward + jnp.where(done, s.gamma * final_value, 0.0)
+        _, final_value = policy_and_value(runner.network, normalize(info["final_observation"], obs_stats))
+        reward = reward + jnp.where(truncated & ~terminated, s.gamma * final_value, 0.0)
         episode_return = runner.episode_return + env_reward
         episode_attacks = runner.episode_attacks + info["heart_attack"]
         ended = (done, episode_return, episode_attacks, info["score"])
