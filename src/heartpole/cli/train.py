@@ -233,7 +233,8 @@ def _train_jax(
 
     def compiled(seconds: float) -> None:
         if not args.json:
-            print(f"compiled in {seconds:.1f} s; training all seeds at once ...", flush=True)
+            which = "all seeds at once" if seeds is not None else f"seed {config.seed}"
+            print(f"compiled in {seconds:.1f} s; training {which} ...", flush=True)
 
     return train_seeds(
         config, seeds, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out,
