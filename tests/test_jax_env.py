@@ -206,7 +206,7 @@ makes 4 figures x 4 cases = 16 comparisons, so a false failure has probability b
 CASES = [
     pytest.param("HeartPole-v0", do_nothing, id="v0-do_nothing", marks=pytest.mark.slow),
     pytest.param("HeartPole-v0", rule, id="v0-rule"),
-    pytest.param("HeartPole-v0", cycle, id="v0-cycle"),
+    pytest.param("HeartPole-v0", cycle, id="v0-cycle", marks=pytest.mark.slow),
     pytest.param("HeartPole-v1", cycle, id="v1-cycle", marks=pytest.mark.slow),
 ]
 

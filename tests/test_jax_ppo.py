@@ -63,6 +63,7 @@ def test_settings_from_the_default_preset_and_bad_configs() -> None:
         ppo.PPOSettings.from_config(training.preset_config("default", reward=auto))
 
 
+@pytest.mark.slow  # compiles and trains two seeds, about 10 s
 def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> None:
     """Two seeds of a few thousand steps in one call: every file of the SB3 path, loadable, evaluable."""
     config = training.preset_config("default", timesteps=4096, n_envs=8, env_kwargs={"max_steps": 64})
