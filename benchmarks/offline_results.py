@@ -23,12 +23,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 import heartpole
 from heartpole.evaluation import plus_minus
-from heartpole.offline.behaviour import EpsilonGreedy, Mixture
-from heartpole.offline.datasets import STANDARD_DATASETS, load_trajectories, record_standard
+from heartpole.offline.behaviour import EpsilonGreedy
+from heartpole.offline.datasets import STANDARD_DATASETS, behaviour_policy, load_trajectories, record_standard
 from heartpole.offline.learners import behaviour_cloning, conservative_q_learning
 from heartpole.offline.ope import ESTIMATORS, estimate_all
 from heartpole.offline.truth import true_value
@@ -43,13 +41,9 @@ EVAL_EPISODES = 2000
 SEED = 0
 
 
-def behaviour_of(spec: heartpole.offline.datasets.DatasetSpec):
-    """The behaviour policy a standard dataset was recorded with (same seeds as record_dataset)."""
-    names = spec.policy if isinstance(spec.policy, tuple) else (spec.policy,)
-    rngs = [np.random.default_rng(np.random.SeedSequence(SEED, spawn_key=(1, n))) for n in range(len(names))]
-    bases = [load_policy(name, rng=rng) for name, rng in zip(names, rngs)]
-    base = bases[0] if len(bases) == 1 else Mixture(bases, 4, rng=7)
-    return EpsilonGreedy(base, spec.epsilon, 4, rng=8)
+def behaviour_of(spec: heartpole.offline.datasets.DatasetSpec) -> EpsilonGreedy:
+    """The behaviour policy a standard dataset is recorded with."""
+    return behaviour_policy(spec.policy, spec.epsilon, seed=SEED)[1]
 
 
 def main() -> None:

@@ -121,6 +121,7 @@ def _expectimax(dynamics: Dynamics, state: list[float], left: int, grid: int, fi
     return max(stay(), rest())
 
 
+@pytest.mark.slow  # exhaustive search, about 15 s
 @pytest.mark.parametrize("sleep_half_hours", [1, 2])
 def test_a_tiny_instance_matches_brute_force(sleep_half_hours: int) -> None:
     params = Params(max_steps=5, sleep_half_hours=sleep_half_hours, wake_alertness=(0.1, 1.9))

@@ -23,10 +23,15 @@ HeartPole: CartPole for health. An agent decides every half-hour of a working da
 nothing, drink coffee, drink beer or sleep, trading productivity against the risk of a heart attack.
 
 examples:
-  heartpole evaluate --policy expert            # 2,000 episodes, 95% intervals
-  heartpole compare --policy expert --policy reference
+  heartpole evaluate --policy expert            # 2,000 episodes, 95% intervals, regret
+  heartpole compare --policy optimal --policy expert
   heartpole baselines                           # the table of built-in policies
+  heartpole optimum                             # the true optimum by dynamic programming
   heartpole train --out runs/ppo                # train an agent with Stable-Baselines3
+  heartpole train --seeds 0-9 --ray             # many seeds as Ray Tune trials
+  heartpole tune --algo ppo --trials 20         # a hyperparameter search with Optuna
+  heartpole dataset --standard                  # Minari datasets for offline RL
+  heartpole ope --dataset heartpole/v0/reference-eps20-v0 --policy expert
   heartpole plot model --out figures/           # the tutorial's curves as PNGs
   heartpole play                                # play HeartPole yourself
 

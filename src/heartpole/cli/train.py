@@ -59,7 +59,14 @@ examples:
   heartpole train --seeds 0-19 --ray --out runs/ppo-20 # twenty seeds as Ray Tune trials, side by side
   heartpole train --preset runs/tune-ppo/best_preset.json --seeds 0-9   # a configuration 'heartpole tune' found
   heartpole evaluate --policy runs/ppo/model.zip       # evaluate the trained model again
+  heartpole train --backend jax --seeds 0-4 --out runs/ppo-jax   # PPO in JAX, five seeds in one compiled call
+
+--backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
+is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
+later runs skip most of the compile time. It saves the same files (an SB3 model.zip with the trained
+weights), so heartpole evaluate and heartpole plot read them alike.
 """
+BACKENDS = ("sb3", "jax")
 
 
 def register(subparsers: Subparsers) -> None:
@@ -97,6 +104,12 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    parser.add_argument(
+        "--backend",
+        default="sb3",
+        metavar="NAME",
+        help="sb3 (Stable-Baselines3, default) or jax (PPO compiled with JAX, seeds vmapped)",
+    )
     ray = parser.add_argument_group("Ray (needs the 'ray' extra; see docs/scale.md)")
     ray.add_argument("--ray", action="store_true", help="run the seeds of --seeds as Ray Tune trials, side by side")
     ray.add_argument("--address", metavar="ADDR", help="a Ray cluster to join, e.g. auto or ray://host:10001 "
@@ -205,10 +218,12 @@ def _score_rate(text: str) -> float | str:
     return value
 
 
-def default_out(config: TrainConfig) -> str:
-    """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others."""
+def default_out(config: TrainConfig, backend: str = "sb3") -> str:
+    """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others (``-jax`` appended
+    for the jax backend)."""
     preset = os.path.splitext(os.path.basename(config.preset))[0]
-    return f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
+    out = f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
+    return out + ("-jax" if backend == "jax" else "")
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -218,6 +233,10 @@ def default_out(config: TrainConfig) -> str:
 def run_train(args: argparse.Namespace) -> int:
     """``heartpole train``: check everything, train (one seed or several), print the evaluation."""
     _require_training_extra()
+    if args.backend not in BACKENDS:
+        raise CommandError(f"unknown backend {args.backend!r}; choose one of {', '.join(BACKENDS)}")
+    if args.backend == "jax" and importlib.util.find_spec("jax") is None:
+        raise CommandError("--backend jax needs JAX, which this Python cannot import: pip install 'heartpole[jax]'")
     import torch
 
     from heartpole import training
@@ -232,17 +251,23 @@ def run_train(args: argparse.Namespace) -> int:
         env_dynamics(config.env_id)
         if config.timesteps < config.n_envs:
             raise ValueError(f"--timesteps ({config.timesteps}) must be at least --n-envs ({config.n_envs})")
-        out = training.check_output_folder(args.out or default_out(config), args.force)
+        if args.backend == "jax":
+            from heartpole.jax.ppo import PPOSettings
+
+            PPOSettings.from_config(config)
+        out = training.check_output_folder(args.out or default_out(config, args.backend), args.force)
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
     # Small networks train fastest on one thread; more threads only contend on a shared machine.
     torch.set_num_threads(1)
     if not args.json:
-        _announce(config, seeds, out)
+        _announce(config, seeds, out, args.backend)
     try:
         with training.staged_output(out, args.force) as staging:
             result: dict[str, Any]
-            if args.ray:
+            if args.backend == "jax":
+                result = _train_jax(args, config, seeds, staging, out, episodes, eval_seed)
+            elif args.ray:
                 result = _train_seeds_ray(args, config, seeds, staging, out, episodes, eval_seed, cpus_per_trial)
             elif seeds is None:
                 result = training.train_run(
@@ -319,6 +344,24 @@ def missing_ray_modules() -> list[str]:
     return [name for name in RAY_MODULES if importlib.util.find_spec(name) is None]
 
 
+def _train_jax(
+    args: argparse.Namespace, config: Any, seeds: list[int] | None, staging: Any, out: Any, episodes: int,
+    eval_seed: int,
+) -> dict[str, Any]:  # fmt: skip
+    from heartpole.jax.ppo import train_seeds
+
+    def compiled(seconds: float) -> None:
+        if not args.json:
+            which = "all seeds at once" if seeds is not None else f"seed {config.seed}"
+            print(f"compiled in {seconds:.1f} s; training {which} ...", flush=True)
+
+    return train_seeds(
+        config, seeds, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out,
+        on_compiled=compiled,
+        on_run=None if args.json or seeds is None else lambda run: print(format_run(run), flush=True),
+    )  # fmt: skip
+
+
 def missing_training_modules() -> list[str]:
     """The modules of the ``train`` extra that this Python cannot import (empty when training can run)."""
     return [name for name in TRAINING_MODULES if importlib.util.find_spec(name) is None]
@@ -332,11 +375,11 @@ def _require_training_extra() -> None:
         )
 
 
-def _announce(config: TrainConfig, seeds: list[int] | None, out: Any) -> None:
+def _announce(config: TrainConfig, seeds: list[int] | None, out: Any, backend: str = "sb3") -> None:
     which = f"seeds {', '.join(map(str, seeds))}" if seeds is not None else f"seed {config.seed}"
     print(
         f"training {config.algo.upper()} ({config.preset} preset) on {config.env_id}: {config.timesteps:,} steps, "
-        f"{config.n_envs} envs, {which}; reward: {config.reward.describe()} -> {out}",
+        f"{config.n_envs} envs, {which}, backend {backend}; reward: {config.reward.describe()} -> {out}",
         flush=True,
     )
 
@@ -356,7 +399,8 @@ def format_run(run: dict[str, Any]) -> str:
         f"seed {run['seed']}: heart attacks {run['heart_attacks_per_episode']:.3f}/episode, "
         f"score {run['score']:.4f}, return {run['mean_return']:.2f} [{low:.2f}, {high:.2f}], "
         f"expected-risk return {run['expected_return']:.3f}, {regret}"
-        f"{run['train_seconds']:.0f} s training, {run['wall_seconds']:.0f} s in all: {verdict}"
+        + (f"{run['compile_seconds']:.0f} s compiling, " if "compile_seconds" in run else "")
+        + f"{run['train_seconds']:.0f} s training, {run['wall_seconds']:.0f} s in all: {verdict}"
     )
 
 

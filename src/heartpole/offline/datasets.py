@@ -137,11 +137,8 @@ def record_dataset(
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     epsilon = check_epsilon(epsilon)
     dynamics = env_dynamics(env_id)
-    num_actions = len(dynamics.actions)
-    components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
-    bases = [_resolve(p, env_id, seed, n) for n, p in enumerate(components)]
-    base: Policy = bases[0] if len(bases) == 1 else Mixture(bases, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 1))
-    behaviour = EpsilonGreedy(base, epsilon, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 0))
+    base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
+    components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
     target_id = dataset_id or default_dataset_id(name, env_id)
     _check_dataset_id(target_id)
@@ -154,7 +151,7 @@ def record_dataset(
     low, high = reference_scores(env_id)
     extra = {
         "behaviour_policy": policy_name(base),
-        "behaviour_components": [policy_name(b) for b in bases],
+        "behaviour_components": [policy_name(b) for b in components],
         "epsilon": epsilon,
         "seed": seed,
         "env_id": env_id,
@@ -279,6 +276,18 @@ def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
     return cast(Policy, policy)  # callable: that it maps observation batches to actions is the caller's promise
+
+
+def behaviour_policy(
+    policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0
+) -> tuple[Policy, EpsilonGreedy]:
+    """``(base, behaviour)``: the policy (or the per-step mixture of several) and its epsilon-greedy
+    behaviour, with the random streams :func:`record_dataset` uses for ``seed``."""
+    num_actions = len(env_dynamics(env_id).actions)
+    components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
+    bases = [_resolve(p, env_id, seed, n) for n, p in enumerate(components)]
+    base: Policy = bases[0] if len(bases) == 1 else Mixture(bases, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 1))
+    return base, EpsilonGreedy(base, epsilon, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 0))
 
 
 def _rng(seed: int, *key: int) -> np.random.Generator:

@@ -1,0 +1,26 @@
+"""HeartPole in JAX: a gymnax-compatible environment (``pip install 'heartpole[jax]'``).
+
+::
+
+    import jax
+    from heartpole.jax import make
+
+    env, params = make("HeartPole-v0")
+    obs, state = env.reset(jax.random.key(0), params)
+    obs, state, reward, done, info = env.step(jax.random.key(1), state, 2, params)
+
+``import heartpole`` never imports JAX; this package does.
+"""
+
+JAX_EXTRA = "pip install 'heartpole[jax]'"
+"""How to install what this package needs."""
+
+try:
+    import jax  # noqa: F401
+except ImportError as error:  # pragma: no cover - exercised in a subprocess without JAX
+    raise ImportError(f"heartpole.jax needs JAX: {JAX_EXTRA}") from error
+
+from heartpole.jax.env import MODEL, EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
+from heartpole.jax.spaces import Box, Discrete  # noqa: E402
+
+__all__ = ["Box", "Discrete", "EnvParams", "EnvState", "HeartPoleJax", "JAX_EXTRA", "MODEL", "make"]

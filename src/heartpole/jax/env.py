@@ -1,0 +1,259 @@
+"""HeartPole as a JAX environment with gymnax's ``Environment`` API: :class:`HeartPoleJax`.
+
+The step is :func:`heartpole.model.step` itself: :data:`MODEL` is :mod:`heartpole.model`'s functions
+rebound to ``jax.numpy`` (``exp``, ``where``) with tuples for states, so JAX traces the very code the
+NumPy envs compile with numba. What this module adds is the gymnax machinery around it: the state and
+parameter pytrees, key handling, the step counter, truncation and autoreset.
+
+Differences from the NumPy envs: the random numbers come from ``jax.random`` (threefry), so a seed gives
+other episodes than the same seed of ``gym.make``; the two are equal in distribution (tested).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from heartpole import model
+from heartpole.dynamics import Dynamics
+from heartpole.jax.spaces import Box, Discrete
+from heartpole.model import ActionEffects, StepTables
+
+MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
+""":mod:`heartpole.model`'s functions with their own code objects, run on ``jax.numpy``."""
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class EnvState:
+    """One episode's state: the state variables (float32, observation order) and the decisions taken."""
+
+    variables: jax.Array
+    time: jax.Array
+
+
+@jax.tree_util.register_dataclass
+@dataclass(frozen=True)
+class EnvParams:
+    """A variant's numbers as arrays, so that they can be changed, batched and ``vmap``-ed over.
+
+    Per action ``a`` and variable ``v`` (``(num_actions, num_variables)`` arrays): ``effect_low``,
+    ``effect_width``, ``rest_fade``; per action: ``rest``, ``drowsy``, ``sleeps``; per variable: ``floor``,
+    ``fade``, ``anxiety_relief``; scalars: ``heart_attack_proclivity``, ``heart_attack_penalty``,
+    ``wake_low``, ``wake_width`` and ``max_steps_in_episode`` (the truncation limit, gymnax's name).
+    Their meaning is :class:`heartpole.model.ActionEffects` and :class:`heartpole.model.StepTables`'.
+    """
+
+    effect_low: jax.Array
+    effect_width: jax.Array
+    rest_fade: jax.Array
+    rest: jax.Array
+    drowsy: jax.Array
+    sleeps: jax.Array
+    floor: jax.Array
+    fade: jax.Array
+    anxiety_relief: jax.Array
+    heart_attack_proclivity: jax.Array
+    heart_attack_penalty: jax.Array
+    wake_low: jax.Array
+    wake_width: jax.Array
+    max_steps_in_episode: jax.Array
+
+    @classmethod
+    def from_dynamics(cls, dynamics: Dynamics) -> EnvParams:
+        """The parameters of a :class:`heartpole.Dynamics` (float32; the step limit int32)."""
+        f32 = lambda values: jnp.asarray(np.asarray(values, dtype=np.float32))  # noqa: E731
+        effects, tables = dynamics.effects, dynamics.tables
+        return cls(
+            effect_low=f32([e.effect_low for e in effects]),
+            effect_width=f32([e.effect_width for e in effects]),
+            rest_fade=f32([e.rest_fade for e in effects]),
+            rest=f32([e.rest for e in effects]),
+            drowsy=f32([e.drowsy for e in effects]),
+            sleeps=f32([e.sleeps for e in effects]),
+            floor=f32(tables.floor),
+            fade=f32(tables.fade),
+            anxiety_relief=f32(tables.anxiety_relief),
+            heart_attack_proclivity=f32(tables.heart_attack_proclivity),
+            heart_attack_penalty=f32(tables.heart_attack_penalty),
+            wake_low=f32(tables.wake_low),
+            wake_width=f32(tables.wake_width),
+            max_steps_in_episode=jnp.asarray(dynamics.params.max_steps, dtype=jnp.int32),
+        )
+
+
+class HeartPoleJax:
+    """HeartPole with gymnax's ``Environment`` API: pure functions of keys, states and parameters.
+
+    The API of gymnax 1.0: ``reset(key, params) -> (obs, state)`` and ``step(key, state, action, params)
+    -> (obs, state, reward, terminated, truncated, info)``, both jittable and ``vmap``-able over keys,
+    states, actions and parameters; ``step_env`` (no reset) returns ``(obs, state, reward, terminated,
+    info)``. ``step`` resets an episode that ended within the same call (gymnax's autoreset): ``obs`` and
+    ``state`` are then the new episode's, and ``info["final_observation"]`` is the observation the episode
+    ended on, which a learner needs to bootstrap through the time limit. Episodes never terminate (nobody
+    dies of HeartPole's heart attacks): ``terminated`` is always ``False``; they are truncated after
+    ``params.max_steps_in_episode`` decisions. ``info`` also holds ``terminated``, ``truncated``,
+    ``discount`` (always 1.0) and, as the NumPy envs' info, ``heart_attack``, ``heart_attack_risk``,
+    ``productivity`` and ``score``. gymnax's wrappers (``LogWrapper`` ...) accept the env.
+
+    Everything is float32 (actions int32).
+
+    Args:
+        dynamics: the variant (``env.unwrapped.dynamics`` of any HeartPole env); default: HeartPole-v0's.
+    """
+
+    def __init__(self, dynamics: Dynamics | None = None) -> None:
+        self.dynamics = Dynamics() if dynamics is None else dynamics
+        self.num_variables = len(self.dynamics.variables)
+        self._num_actions = len(self.dynamics.actions)
+        self._rest_offsets = self.dynamics.tables.rest_offsets  # static: how many drowsy half-hours to unroll
+        self._default_params = EnvParams.from_dynamics(self.dynamics)
+
+    @classmethod
+    def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
+        """The JAX env of a registered HeartPole id (v0, v1, or a :func:`heartpole.register_variant` one),
+        made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...)."""
+        from heartpole.policies import env_dynamics
+
+        return cls(env_dynamics(env_id, env_kwargs))
+
+    # -- gymnax's Environment API ----------------------------------------------------------------------
+    @property
+    def default_params(self) -> EnvParams:
+        """The variant's own parameters."""
+        return self._default_params
+
+    @property
+    def name(self) -> str:
+        """The environment's name."""
+        return "HeartPole"
+
+    @property
+    def num_actions(self) -> int:
+        """How many actions there are."""
+        return self._num_actions
+
+    def reset(self, key: jax.Array, params: EnvParams | None = None) -> tuple[jax.Array, EnvState]:
+        """Start an episode: every variable at 0, then wake up (fact 1)."""
+        return self.reset_env(key, self.default_params if params is None else params)
+
+    def step(
+        self, key: jax.Array, state: EnvState, action: Any, params: EnvParams | None = None
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """One decision and the half-hour after it: ``(obs, state, reward, terminated, truncated, info)``;
+        an episode that reaches its step limit restarts at once."""
+        params = self.default_params if params is None else params
+        key_step, key_reset = jax.random.split(key)
+        obs_step, state_step, reward, terminated, info = self.step_env(key_step, state, action, params)
+        truncated = self.is_truncated(state_step, params)
+        done = jnp.logical_or(terminated, truncated)
+        obs_reset, state_reset = self.reset_env(key_reset, params)
+        state = jax.tree_util.tree_map(lambda new, old: jnp.where(done, new, old), state_reset, state_step)
+        obs = jnp.where(done, obs_reset, obs_step)
+        info = {**info, "terminated": terminated, "truncated": truncated, "final_observation": obs_step}
+        return obs, state, reward, terminated, truncated, info
+
+    def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
+        """:func:`heartpole.model.initial_state` with one uniform draw from ``key``."""
+        zeros = (jnp.float32(0.0),) * self.num_variables
+        uniform = jax.random.uniform(key, (), jnp.float32)
+        variables = jnp.stack(MODEL.initial_state(zeros, uniform, self._tables(params)))
+        state = EnvState(variables=variables, time=jnp.int32(0))
+        return self.get_obs(state), state
+
+    def step_env(
+        self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """:func:`heartpole.model.step` with ``len(state) + 2`` uniform draws from ``key``, no reset:
+        ``(obs, state, reward, terminated, info)``."""
+        n = self.num_variables
+        u = jax.random.uniform(key, (n + 2,), jnp.float32)
+        s = tuple(state.variables[v] for v in range(n))
+        new, reward, worked, risk, attack, score = MODEL.step(
+            s, self._effects(params, action), tuple(u[i] for i in range(n + 2)), self._tables(params)
+        )
+        state = EnvState(variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
+        info = {
+            "discount": self.discount(state, params),
+            "heart_attack": attack,
+            "heart_attack_risk": jnp.float32(risk),
+            "productivity": jnp.float32(worked),
+            "score": jnp.float32(score),
+        }
+        return self.get_obs(state), state, jnp.float32(reward), self.is_terminated(state, params), info
+
+    def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
+        """The observation: the state variables in observation order (float32)."""
+        return state.variables
+
+    def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
+        """gymnax 1.0's observation hook: :meth:`get_obs`."""
+        return self.get_obs(state, params, key)
+
+    def is_truncated(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """Whether the episode has reached its step limit."""
+        return state.time >= params.max_steps_in_episode
+
+    def is_terminated(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """Always ``False``: nobody dies of HeartPole's heart attacks."""
+        return jnp.bool_(False)
+
+    def is_terminal(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """gymnax's older name of :meth:`is_terminated` (time limits excluded)."""
+        return self.is_terminated(state, params)
+
+    def discount(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """Always 1.0: HeartPole's episodes end by truncation, never in an absorbing state."""
+        return jnp.float32(1.0)
+
+    def action_space(self, params: EnvParams | None = None) -> Discrete:
+        """``Discrete(num_actions)``, in the variant's action order."""
+        return Discrete(self._num_actions)
+
+    def observation_space(self, params: EnvParams | None = None) -> Box:
+        """The float32 box of the Gymnasium env's observation space (the same bounds)."""
+        from heartpole.env import observation_space
+
+        box = observation_space(self.dynamics)
+        return Box(box.low, box.high, box.shape, jnp.float32)
+
+    def state_space(self, params: EnvParams | None = None) -> dict[str, Any]:
+        """The spaces of :class:`EnvState`'s fields."""
+        params = self.default_params if params is None else params
+        return {"variables": self.observation_space(params), "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32)}
+
+    # -- the step's inputs as :mod:`heartpole.model` takes them ------------------------------------------
+    def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
+        n, action = self.num_variables, jnp.asarray(action, dtype=jnp.int32)
+        row = lambda table: tuple(table[action, v] for v in range(n))  # noqa: E731
+        return ActionEffects(
+            effect_low=row(params.effect_low),
+            effect_width=row(params.effect_width),
+            rest_fade=row(params.rest_fade),
+            rest=params.rest[action],
+            drowsy=params.drowsy[action],
+            sleeps=params.sleeps[action],
+        )
+
+    def _tables(self, params: EnvParams) -> StepTables:
+        n = self.num_variables
+        return StepTables(
+            floor=tuple(params.floor[v] for v in range(n)),
+            fade=tuple(params.fade[v] for v in range(n)),
+            anxiety_relief=tuple(params.anxiety_relief[v] for v in range(n)),
+            rest_offsets=self._rest_offsets,
+            heart_attack_proclivity=params.heart_attack_proclivity,
+            heart_attack_penalty=params.heart_attack_penalty,
+            wake_low=params.wake_low,
+            wake_width=params.wake_width,
+        )
+
+
+def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:
+    """``(env, env_params)`` for a HeartPole id, like ``gymnax.make``; ``env_kwargs`` as for ``gymnasium.make``."""
+    env = HeartPoleJax.from_id(env_id, **env_kwargs)
+    return env, env.default_params

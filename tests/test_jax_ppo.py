@@ -1,0 +1,124 @@
+"""heartpole.jax.ppo: its parts against SB3/PyTorch, a smoke run whose outputs load, and the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+jax = pytest.importorskip("jax", reason="heartpole.jax needs the 'jax' extra: pip install 'heartpole[jax]'")
+pytest.importorskip("stable_baselines3", reason="saving and evaluating needs the 'train' extra")
+torch = pytest.importorskip("torch")
+
+import jax.numpy as jnp  # noqa: E402
+
+from heartpole import training  # noqa: E402
+from heartpole.cli import main  # noqa: E402
+from heartpole.jax import ppo  # noqa: E402
+from heartpole.policies import load_policy  # noqa: E402
+
+pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*:DeprecationWarning")
+
+
+def test_running_stats_match_sb3() -> None:
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
+
+    rng = np.random.default_rng(0)
+    ours, theirs = ppo.RunningStats.start((3,)), RunningMeanStd(shape=(3,))
+    for _ in range(5):
+        batch = rng.normal(2.0, 3.0, size=(16, 3)).astype(np.float32)
+        ours, _ = ours.update(jnp.asarray(batch)), theirs.update(batch)
+    np.testing.assert_allclose(ours.mean, theirs.mean, rtol=1e-5)
+    np.testing.assert_allclose(ours.var, theirs.var, rtol=1e-4)
+
+
+def test_adam_step_matches_torch() -> None:
+    """Clipping to the global norm, then PyTorch's Adam with eps 1e-5, as SB3's PPO does."""
+    rng = np.random.default_rng(1)
+    weights = rng.normal(size=(4, 3)).astype(np.float32)
+    params, state = jnp.asarray(weights), ppo.adam_init(jnp.asarray(weights))
+    tensor = torch.nn.Parameter(torch.tensor(weights))
+    optimizer = torch.optim.Adam([tensor], lr=0.01, eps=1e-5)
+    for _ in range(3):
+        grad = rng.normal(size=(4, 3)).astype(np.float32)
+        params, state = ppo.adam_step(params, jnp.asarray(grad), state, 0.01, 0.5)
+        tensor.grad = torch.tensor(grad)
+        torch.nn.utils.clip_grad_norm_([tensor], 0.5)
+        optimizer.step()
+    np.testing.assert_allclose(params, tensor.detach().numpy(), rtol=1e-5, atol=1e-6)
+
+
+def test_settings_from_the_default_preset_and_bad_configs() -> None:
+    settings = ppo.PPOSettings.from_config(training.preset_config("default"))
+    assert (settings.n_envs, settings.n_steps, settings.batch_size, settings.gamma) == (16, 128, 512, 0.95)
+    assert settings.score_rate == 0.32 and settings.expected_risk and settings.num_updates == 196
+    with pytest.raises(ValueError, match="PPO only"):
+        ppo.PPOSettings.from_config(training.preset_config("tutorial"))
+    auto = replace(training.SHAPED_REWARD, score_rate="auto")
+    with pytest.raises(ValueError, match="score_rate='auto'"):
+        ppo.PPOSettings.from_config(training.preset_config("default", reward=auto))
+
+
+@pytest.mark.slow  # compiles and trains two seeds, about 10 s
+def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> None:
+    """Two seeds of a few thousand steps in one call: every file of the SB3 path, loadable, evaluable."""
+    config = training.preset_config("default", timesteps=4096, n_envs=8, env_kwargs={"max_steps": 64})
+    summary = ppo.train_seeds(config, [0, 1], tmp_path, eval_episodes=20)
+    assert summary["seeds"] == [0, 1] and summary["compile_seconds"] > 0 and summary["train_seconds"] > 0
+    assert set(summary["aggregate"]) >= {"heart_attacks_per_episode", "score", "mean_return"}
+    assert json.loads((tmp_path / "summary.json").read_text())["backend"] == "jax"
+    for seed in (0, 1):
+        folder = tmp_path / f"seed_{seed}"
+        for name in ("model.zip", "vecnormalize.pkl", "heartpole.json", "learning_curve.csv", "evaluation.json"):
+            assert (folder / name).is_file(), name
+        curve = training.read_curve(folder / "learning_curve.csv")
+        assert len(curve) == 4096 // (8 * 64) and curve[0]["timesteps"] == 8 * 64
+        policy = load_policy(str(folder / "model.zip"), "HeartPole-v0", env_kwargs={"max_steps": 64})
+        assert policy(np.zeros((3, 6), np.float32)).shape == (3,)
+    code = main(["evaluate", "--policy", str(tmp_path / "seed_0" / "model.zip"), "--episodes", "10"])
+    assert code == 0 and "seed_0" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_exported_model_acts_as_the_jax_network(tmp_path) -> None:
+    """The SB3 model.zip holds the very weights: its greedy actions equal the JAX network's argmax."""
+    config = training.preset_config("default", timesteps=1024, n_envs=8, env_kwargs={"max_steps": 32})
+    env = ppo.HeartPoleJax.from_id("HeartPole-v0", max_steps=32)
+    settings = ppo.PPOSettings.from_config(config)
+    runner, _ = jax.jit(ppo.make_train(env, env.default_params, settings))(jax.random.key(3))
+    ppo.export_sb3(config, runner, tmp_path)
+    policy = load_policy(str(tmp_path / "model.zip"), "HeartPole-v0")
+    obs = np.random.default_rng(0).uniform(0, 5, size=(200, 6)).astype(np.float32)
+    seen = policy.normalize(obs)
+    logits, _ = ppo.policy_and_value(runner.network, jnp.asarray(seen))
+    np.testing.assert_array_equal(policy(obs), np.asarray(jnp.argmax(logits, axis=1)))
+
+
+def test_cli_backend_jax_without_jax_says_what_to_install() -> None:
+    code = (
+        "import sys; sys.modules['jax'] = None\n"
+        "from heartpole.cli import main\n"
+        "sys.exit(main(['train', '--backend', 'jax', '--timesteps', '100']))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr.strip() == (
+        "heartpole train: error: --backend jax needs JAX, which this Python cannot import: pip install 'heartpole[jax]'"
+    )
+
+
+def test_cli_bad_backend_and_algorithm(capsys, tmp_path) -> None:
+    assert main(["train", "--backend", "tensorflow", "--out", str(tmp_path / "a")]) == 2
+    assert "unknown backend 'tensorflow'; choose one of sb3, jax" in capsys.readouterr().err
+    assert main(["train", "--backend", "jax", "--algo", "dqn", "--out", str(tmp_path / "b")]) == 2
+    assert "PPO only" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_training_runs_in_whole_update_pieces() -> None:
+    assert ppo.chunk_size(196) == 7 and ppo.chunk_size(197) == 1 and ppo.chunk_size(5) == 1
+    assert all(n % ppo.chunk_size(n) == 0 and n // ppo.chunk_size(n) >= min(n, 20) for n in range(1, 400))
