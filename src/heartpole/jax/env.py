@@ -11,6 +11,7 @@ other episodes than the same seed of ``gym.make``; the two are equal in distribu
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,6 +67,7 @@ class EnvParams:
     @classmethod
     def from_dynamics(cls, dynamics: Dynamics) -> EnvParams:
         """The parameters of a :class:`heartpole.Dynamics` (float32; the step limit int32)."""
+        f32: Callable[[Any], jax.Array]
         f32 = lambda values: jnp.asarray(np.asarray(values, dtype=np.float32))  # noqa: E731
         effects, tables = dynamics.effects, dynamics.tables
         return cls(
@@ -229,6 +231,7 @@ class HeartPoleJax:
     # -- the step's inputs as :mod:`heartpole.model` takes them ------------------------------------------
     def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
         n, action = self.num_variables, jnp.asarray(action, dtype=jnp.int32)
+        row: Callable[[jax.Array], tuple[jax.Array, ...]]
         row = lambda table: tuple(table[action, v] for v in range(n))  # noqa: E731
         return ActionEffects(
             effect_low=row(params.effect_low),

@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import jax
 import jax.numpy as jnp
@@ -30,6 +30,9 @@ import numpy as np
 
 from heartpole.jax.env import EnvParams, HeartPoleJax
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
 
 CACHE_DIR_VARIABLE = "HEARTPOLE_JAX_CACHE"
 """Environment variable naming the persistent compilation cache's folder (default: the user's cache)."""
@@ -163,7 +166,7 @@ class Adam(NamedTuple):
 
     mean: Any
     square: Any
-    count: jax.Array
+    count: jax.Array  # type: ignore[assignment]  # the field shadows tuple.count
 
 
 def adam_init(params: Any) -> Adam:
@@ -191,7 +194,7 @@ class RunningStats(NamedTuple):
 
     mean: jax.Array
     var: jax.Array
-    count: jax.Array
+    count: jax.Array  # type: ignore[assignment]  # the field shadows tuple.count
 
     @classmethod
     def start(cls, shape: tuple[int, ...]) -> RunningStats:
@@ -264,7 +267,7 @@ def make_parts(
             return score_part - penalty * (info["heart_attack_risk"] - risk_floor)
         return score_part - penalty * attack
 
-    def env_step(runner: Runner, _: Any) -> tuple[Runner, tuple[jax.Array, ...]]:
+    def env_step(runner: Runner, _: Any) -> tuple[Runner, tuple[tuple[jax.Array, ...], tuple[jax.Array, ...]]]:
         key, action_key, step_key = jax.random.split(runner.key, 3)
         seen = normalize(runner.obs, runner.obs_stats)
         logits, value = policy_and_value(runner.network, seen)
@@ -394,6 +397,7 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
     """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's: ``model.zip``
     (an SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics)."""
     import torch
+    from stable_baselines3.common.vec_env import VecNormalize
 
     from heartpole import training
 
@@ -409,10 +413,12 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
             state[f"{torch_name}.weight"] = torch.as_tensor(np.asarray(weight).T.copy())
             state[f"{torch_name}.bias"] = torch.as_tensor(np.asarray(bias).copy())
         model.policy.load_state_dict(state)
-        model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps
+        # build_model makes a PPO here (typed as SB3's BaseAlgorithm, which has no n_steps)
+        model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps  # type: ignore[attr-defined]
         model.save(folder / training.MODEL_FILE)
-        if isinstance(venv, training.VecNormalize):
-            for stats, ours in ((venv.obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
+        if isinstance(venv, VecNormalize):
+            obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
+            for stats, ours in ((obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
                 stats.mean = np.asarray(ours.mean, dtype=np.float64).reshape(stats.mean.shape)
                 stats.var = np.asarray(ours.var, dtype=np.float64).reshape(stats.var.shape)
                 stats.count = float(ours.count)
@@ -526,16 +532,19 @@ def train_seeds(
             bar.update(chunk * settings.rollout * len(seeds))
     ended = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs, axis=1), *pieces)
     timings = {"compile_seconds": compile_seconds, "train_seconds": time.perf_counter() - started}
-    runs = []
+    runs: list[dict[str, Any]] = []
     for i, seed in enumerate(seeds):
-        pick = lambda tree, i=i: jax.tree_util.tree_map(lambda x: x[i], tree)  # noqa: E731
+
+        def pick(tree: Any, i: int = i) -> Any:
+            return jax.tree_util.tree_map(lambda x: x[i], tree)
+
         seed_config = replace(config, seed=seed)
         where = (folder, final) if single else (folder / f"seed_{seed}", final / f"seed_{seed}")
-        run = _seed_result(seed_config, pick(runners), learning_curve(pick(ended), settings), where[0], timings,
-                           eval_episodes, eval_seed, progress, where[1])  # fmt: skip
-        runs.append(run)
+        result = _seed_result(seed_config, pick(runners), learning_curve(pick(ended), settings), where[0], timings,
+                              eval_episodes, eval_seed, progress, where[1])  # fmt: skip
+        runs.append(result)
         if on_run is not None:
-            on_run(run)
+            on_run(result)
     if single:
         return runs[0]
     summary = {
