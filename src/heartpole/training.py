@@ -60,7 +60,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import gymnasium as gym
 import numpy as np
@@ -126,7 +126,7 @@ class TrainingReward:
     """
 
     expected_risk: bool = False
-    score_rate: float | str | None = None
+    score_rate: float | Literal["auto"] | None = None
     rate_window: float = 2000.0
     horizon: float = 2000.0
 
@@ -651,7 +651,9 @@ def preset_config(
     return config
 
 
-def shaped_reward_rate(env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best") -> float | str:
+def shaped_reward_rate(
+    env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best"
+) -> float | Literal["auto"]:
     """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
     from heartpole.policies import env_dynamics
     from heartpole.registry import best_known_rate
