@@ -7,13 +7,13 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TextIO
 
 
 class Progress:
     """A one-line progress bar on stderr, shown when stderr is a terminal (or HEARTPOLE_PROGRESS=1)."""
 
-    def __init__(self, total: int, description: str, stream: Any = None) -> None:
+    def __init__(self, total: int, description: str, stream: TextIO | None = None) -> None:
         self.total, self.description, self.done = max(int(total), 1), description, 0
         self.stream = stream or sys.stderr
         self.enabled = os.environ.get("HEARTPOLE_PROGRESS") == "1" or bool(getattr(self.stream, "isatty", bool)())

@@ -29,7 +29,7 @@ from heartpole.cli.common import (
 from heartpole.progress import progress
 
 if TYPE_CHECKING:
-    from heartpole.evaluation import Comparison, EvaluationResult
+    from heartpole.evaluation import Comparison, EvaluationResult, PolicyLike
 
 ORDER = 10
 
@@ -164,7 +164,7 @@ def _evaluate(spec: str, args: argparse.Namespace) -> EvaluationResult:
     from heartpole.policies import BUILTIN_POLICIES, env_dynamics, load_policy
 
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
-    policy: Any = spec
+    policy: PolicyLike = spec
     if spec not in BUILTIN_POLICIES:  # a model: loaded here, so the user hears which statistics it applies
         policy = _library(lambda: load_policy(spec, args.env))
         tell_normalization(policy)

@@ -11,6 +11,7 @@ import shutil
 import sys
 import types
 from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from heartpole.cli.common import CommandError, Subparsers, format_table
@@ -157,7 +158,7 @@ def run_tune(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
-def _check_out(scale: Any, out: Path, resume: bool, force: bool) -> None:
+def _check_out(scale: ModuleType, out: Path, resume: bool, force: bool) -> None:
     if resume:
         if force:
             raise CommandError("--resume continues the search in --out and --force replaces it: give one")
