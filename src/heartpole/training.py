@@ -60,7 +60,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, cast
+from typing import TYPE_CHECKING, Any, Literal, NoReturn, cast
 
 import gymnasium as gym
 import numpy as np
@@ -70,6 +70,8 @@ import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
 
 if TYPE_CHECKING:
+    from tqdm import tqdm
+
     from heartpole.vector import HeartPoleVectorEnv
 
 TRAIN_EXTRA = "pip install 'heartpole[train]'"
@@ -459,7 +461,7 @@ class ProgressBar(BaseCallback):
     def __init__(self, total: int, description: str = "training", force: bool = False) -> None:
         super().__init__()
         self.total, self.description, self.force = int(total), description, force
-        self._bar: Any = None
+        self._bar: tqdm[NoReturn] | None = None
 
     def _on_training_start(self) -> None:
         from tqdm import tqdm
@@ -952,7 +954,7 @@ def seeds_summary(
 AGGREGATED = ("mean_return", "expected_return", "heart_attacks_per_episode", "score", "wall_seconds")
 
 
-def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> Any:
+def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> float | np.ndarray:
     """The mean of the middle half: ``floor(n / 4)`` values cut from each end (``scipy.stats.trim_mean(x,
     0.25)``, which rliable uses); with fewer than 4 values, the plain mean."""
     array = np.sort(np.asarray(values, dtype=np.float64), axis=axis)
