@@ -243,15 +243,15 @@ def _seed_trial(
         eval_seed=eval_seed,
         final_folder=Path(final_folder) / f"seed_{seed}" if final_folder is not None else None,
     )
-    tune.report({**run, "ci95": json.dumps(run["ci95"]), "expected_ci95": json.dumps(run["expected_ci95"])})
+    # Tune flattens nested metrics (intervals, the solved bar): the whole summary travels as JSON beside the
+    # plain numbers the progress bar reads.
+    numbers = {key: value for key, value in run.items() if isinstance(value, (int, float, bool))}
+    tune.report({**numbers, "run": json.dumps(run)})
 
 
 def _run_of(metrics: Mapping[str, Any]) -> dict[str, Any]:
     """A trial's reported metrics back as :func:`heartpole.training.run_summary`'s dict."""
-    keys = ("seed", "mean_return", "ci95", "expected_return", "expected_ci95", "heart_attacks_per_episode",
-            "score", "drinks_per_episode", "sleeps_per_episode", "solved", "train_seconds", "wall_seconds")  # fmt: skip
-    run = {key: metrics[key] for key in keys}
-    run["ci95"], run["expected_ci95"] = json.loads(run["ci95"]), json.loads(run["expected_ci95"])
+    run: dict[str, Any] = json.loads(metrics["run"])
     return run
 
 
