@@ -302,18 +302,20 @@ def _summary(game: Game, args: argparse.Namespace, seed: int, out: TextIO) -> No
         f"\nThe built-in policies over {args.baseline_episodes} episodes of {game.steps} decisions (seed {seed}):\n"
     )
     out.flush()
-    rows = _baseline_rows(args.env, game.steps, args.baseline_episodes, seed)
-    you = [game.total_return, game.heart_attacks, game.score]
-    rows.append(["you", f"{expected_return(game):.3f}", f"{you[0]:.3f} (one episode)", str(you[1]), f"{you[2]:.3f}"])
-    rows.sort(key=lambda row: -float(row[1]))
+    ranked = _baseline_rows(args.env, game.steps, args.baseline_episodes, seed)
+    you = ["you", f"{expected_return(game):.3f}", f"{game.total_return:.3f} (one episode)", str(game.heart_attacks)]
+    ranked.append((expected_return(game), [*you, f"{game.score:.3f}"]))
+    ranked.sort(key=lambda pair: -pair[0])  # by the expected return itself, not its formatted text
+    rows = [row for _, row in ranked]
     headers = ["policy", "expected return", "return (95% CI)", "heart attacks", "score"]
     out.write(format_table(headers, rows) + "\n")
     place = [row[0] for row in rows].index("you") + 1
     out.write(f"\nYou placed {place} of {len(rows)}. {_verdict(rows, place)}\n")
 
 
-def _baseline_rows(env_id: str, steps: int, episodes: int, seed: int) -> list[list[str]]:
-    """One row per built-in policy: expected return, realized return with its interval, heart attacks, score."""
+def _baseline_rows(env_id: str, steps: int, episodes: int, seed: int) -> list[tuple[float, list[str]]]:
+    """One ``(expected return, row)`` per built-in policy; the row holds the expected return, the realized
+    return with its interval, heart attacks and score, formatted."""
     from heartpole.evaluation import evaluate
     from heartpole.policies import available_builtins, load_policy
 
@@ -325,7 +327,9 @@ def _baseline_rows(env_id: str, steps: int, episodes: int, seed: int) -> list[li
         interval = f" [{low:.2f}, {high:.2f}]" if math.isfinite(low) else ""
         realized = f"{result.mean_return:.3f}{interval}"
         attacks = f"{result.heart_attacks_per_episode:.3f}"
-        rows.append([name, f"{result.expected_return:.3f}", realized, attacks, f"{result.score:.3f}"])
+        rows.append(
+            (result.expected_return, [name, f"{result.expected_return:.3f}", realized, attacks, f"{result.score:.3f}"])
+        )
     return rows
 
 
