@@ -22,7 +22,8 @@ import numpy as np
 
 from heartpole import model
 from heartpole.model import Params
-from heartpole.render import landmarks
+from heartpole.policies import CURVE_COLUMNS, CURVE_NAME
+from heartpole.render import EPISODE_START_MINUTES, landmarks
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -336,7 +337,7 @@ def _action_strip(axes: Axes, trace: EpisodeTrace, days: np.ndarray) -> None:
     axes.set_ylabel("action")
 
 
-START_DAY = 9.0 / 24.0  # the episode starts at 09:00 on day 1
+START_DAY = EPISODE_START_MINUTES / (24 * 60)  # the episode starts at 09:00 on day 1
 
 
 def episode_days(trace: EpisodeTrace) -> np.ndarray:
@@ -427,7 +428,6 @@ def _episode_title(trace: EpisodeTrace) -> str:
 
 # --------------------------------------------------------------------------------------------------------
 # Learning curves.
-CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 
 
 def read_learning_curve(path: str | Path) -> dict[str, np.ndarray]:
@@ -458,10 +458,10 @@ def find_learning_curves(folder: str | Path) -> dict[str, Path]:
     Returns ``{label: path}``; empty if there are none.
     """
     folder = Path(folder)
-    seeds = sorted(folder.glob("seed_*/learning_curve.csv"), key=lambda p: _seed_number(p.parent.name))
+    seeds = sorted(folder.glob(f"seed_*/{CURVE_NAME}"), key=lambda p: _seed_number(p.parent.name))
     if seeds:
         return {p.parent.name.replace("_", " "): p for p in seeds}
-    single = folder / "learning_curve.csv"
+    single = folder / CURVE_NAME
     return {"run": single} if single.is_file() else {}
 
 

@@ -83,9 +83,16 @@ class Predictor(Protocol):
         ...
 
 
+SB3_ALGORITHMS = ("ppo", "a2c", "dqn")
+"""The Stable-Baselines3 algorithms HeartPole trains and loads."""
+# The files a training run writes in its folder (heartpole.training writes them; loading and plots read them).
+MODEL_NAME = "model.zip"
 SIDECAR_NAME = "heartpole.json"
 VECNORMALIZE_NAME = "vecnormalize.pkl"
-SB3_ALGORITHMS = ("ppo", "a2c", "dqn")
+CURVE_NAME = "learning_curve.csv"
+CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
+"""The columns of a learning curve: after each evaluation, its timestep and the mean return, heart
+attacks and score of the episodes finished since the last one."""
 
 
 def _observations(obs: Any) -> np.ndarray:

@@ -68,6 +68,14 @@ from gymnasium.vector import AutoresetMode
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
+from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
+    CURVE_COLUMNS,
+    CURVE_NAME,
+    MODEL_NAME,
+    SB3_ALGORITHMS,
+    SIDECAR_NAME,
+    VECNORMALIZE_NAME,
+)
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -86,14 +94,8 @@ try:
 except ImportError as error:  # pragma: no cover - `heartpole train` checks for the modules first
     raise ImportError(f"heartpole.training needs Stable-Baselines3 and PyTorch: {TRAIN_EXTRA}") from error
 
-ALGORITHMS = ("ppo", "a2c", "dqn")
-MODEL_FILE = "model.zip"
-SIDECAR_FILE = "heartpole.json"
-VECNORMALIZE_FILE = "vecnormalize.pkl"
-CURVE_FILE = "learning_curve.csv"
 EVALUATION_FILE = "evaluation.json"
 SUMMARY_FILE = "summary.json"
-CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 
 SOLVED_HEART_ATTACKS = 1.30
 """Issue 3's bar for HeartPole-v0: at most this many heart attacks per episode over 2,000 evaluation
@@ -518,8 +520,8 @@ class TrainConfig:
     env_kwargs: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.algo not in ALGORITHMS:
-            raise ValueError(f"unknown algorithm {self.algo!r}; choose one of {', '.join(ALGORITHMS)}")
+        if self.algo not in SB3_ALGORITHMS:
+            raise ValueError(f"unknown algorithm {self.algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
         for name in ("timesteps", "n_envs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -627,8 +629,8 @@ def preset_config(
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
     algo = DEFAULT_ALGO[preset] if algo is None else algo
-    if algo not in ALGORITHMS:
-        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    if algo not in SB3_ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
     if preset == "tutorial":
         if score_rate != "best":
             raise ValueError("the tutorial preset trains on the env's own reward, which has no score rate")
@@ -813,10 +815,10 @@ def train_run(
     folder.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     trained = train_model(config, progress=progress)
-    trained.model.save(folder / MODEL_FILE)
+    trained.model.save(folder / MODEL_NAME)
     if trained.normalizer is not None:
-        trained.normalizer.save(str(folder / VECNORMALIZE_FILE))
-    write_curve(folder / CURVE_FILE, trained.curve)
+        trained.normalizer.save(str(folder / VECNORMALIZE_NAME))
+    write_curve(folder / CURVE_NAME, trained.curve)
     from heartpole.policies import file_sha256
 
     sidecar: dict[str, Any] = {
@@ -827,18 +829,18 @@ def train_run(
         "preset": config.preset,
         "policy": "MlpPolicy",
         "config": config.to_dict(),
-        "model": MODEL_FILE,
-        "model_sha256": file_sha256(folder / MODEL_FILE),
+        "model": MODEL_NAME,
+        "model_sha256": file_sha256(folder / MODEL_NAME),
         # the statistics saved with this model: load_policy applies these and no others
-        "vecnormalize": VECNORMALIZE_FILE if trained.normalizer is not None else None,
-        "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_FILE) if trained.normalizer is not None else None,
+        "vecnormalize": VECNORMALIZE_NAME if trained.normalizer is not None else None,
+        "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_NAME) if trained.normalizer is not None else None,
         "train_seconds": round(trained.seconds, 2),
         "versions": _versions(),
     }
-    _write_json(folder / SIDECAR_FILE, sidecar)
+    _write_json(folder / SIDECAR_NAME, sidecar)
     eval_started = time.perf_counter()
-    policy = load_policy(str(folder / MODEL_FILE), config.env_id, env_kwargs=dict(config.env_kwargs))
-    policy.name = str(Path(final_folder if final_folder is not None else folder) / MODEL_FILE)  # type: ignore[attr-defined]
+    policy = load_policy(str(folder / MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
+    policy.name = str(Path(final_folder if final_folder is not None else folder) / MODEL_NAME)  # type: ignore[attr-defined]
     result = evaluate(
         policy,
         config.env_id,
@@ -851,7 +853,7 @@ def train_run(
     _write_json(folder / EVALUATION_FILE, evaluation)
     eval_seconds = time.perf_counter() - eval_started
     sidecar.update(eval_seconds=round(eval_seconds, 2), wall_seconds=round(time.perf_counter() - started, 2))
-    _write_json(folder / SIDECAR_FILE, sidecar)
+    _write_json(folder / SIDECAR_NAME, sidecar)
     return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"])
 
 
@@ -1046,9 +1048,9 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
     if out.is_dir() and any(out.iterdir()):
         if not force:
             raise FileExistsError(f"--out {out} exists and is not empty; pass --force to replace it")
-        if not ((out / SIDECAR_FILE).is_file() or (out / SUMMARY_FILE).is_file()):
+        if not ((out / SIDECAR_NAME).is_file() or (out / SUMMARY_FILE).is_file()):
             raise PermissionError(
-                f"--out {out} was not written by 'heartpole train' (no {SIDECAR_FILE} or {SUMMARY_FILE}); "
+                f"--out {out} was not written by 'heartpole train' (no {SIDECAR_NAME} or {SUMMARY_FILE}); "
                 "refusing to replace it even with --force"
             )
     return out

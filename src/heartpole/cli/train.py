@@ -16,13 +16,14 @@ import types
 from typing import TYPE_CHECKING, Any, NoReturn, overload
 
 from heartpole.cli.common import CommandError, Subparsers, format_table
+from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 
 if TYPE_CHECKING:
     from heartpole.training import TrainConfig
 
 ORDER = 20
 
-ALGORITHMS = ("ppo", "a2c", "dqn")
+ALGORITHMS = SB3_ALGORITHMS
 PRESETS = ("default", "tutorial")
 MAX_SEEDS = 100
 TRAINING_MODULES = ("stable_baselines3", "torch", "tqdm")
@@ -291,7 +292,7 @@ def run_train(args: argparse.Namespace) -> int:
     elif seeds is None:
         print(format_run(result))
         print(f"wrote {out}/: model.zip, heartpole.json, learning_curve.csv, evaluation.json"
-              + (", vecnormalize.pkl" if (out / training.VECNORMALIZE_FILE).exists() else ""))  # fmt: skip
+              + (", vecnormalize.pkl" if (out / VECNORMALIZE_NAME).exists() else ""))  # fmt: skip
     else:
         print(format_summary(result))
         print(f"wrote {out}/seed_<s>/ for seeds {args.seeds} and {out}/{training.SUMMARY_FILE}")

@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from heartpole import policies
 from heartpole.jax.env import EnvParams, HeartPoleJax
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
 
@@ -415,7 +416,7 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
         model.policy.load_state_dict(state)
         # build_model makes a PPO here (typed as SB3's BaseAlgorithm, which has no n_steps)
         model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps  # type: ignore[attr-defined]
-        model.save(folder / training.MODEL_FILE)
+        model.save(folder / policies.MODEL_NAME)
         if isinstance(venv, VecNormalize):
             obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
             for stats, ours in ((obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
@@ -423,7 +424,7 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
                 stats.var = np.asarray(ours.var, dtype=np.float64).reshape(stats.var.shape)
                 stats.count = float(ours.count)
             venv.training = False
-            venv.save(str(folder / training.VECNORMALIZE_FILE))
+            venv.save(str(folder / policies.VECNORMALIZE_NAME))
     finally:
         venv.close()
 
@@ -441,7 +442,7 @@ def _seed_result(
     started = time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
     export_sb3(config, runner, folder)
-    training.write_curve(folder / training.CURVE_FILE, curve)
+    training.write_curve(folder / policies.CURVE_NAME, curve)
     sidecar = {
         "algo": "ppo",
         "backend": "jax",
@@ -451,14 +452,14 @@ def _seed_result(
         "preset": config.preset,
         "policy": "MlpPolicy",
         "config": config.to_dict(),
-        "vecnormalize": training.VECNORMALIZE_FILE if config.normalize_observations or config.normalize_rewards
+        "vecnormalize": policies.VECNORMALIZE_NAME if config.normalize_observations or config.normalize_rewards
         else None,
         **{key: round(value, 2) for key, value in timings.items()},
         "versions": {**training._versions(), "jax": jax.__version__},
     }  # fmt: skip
-    training._write_json(folder / training.SIDECAR_FILE, sidecar)
-    policy = load_policy(str(folder / training.MODEL_FILE), config.env_id, env_kwargs=dict(config.env_kwargs))
-    policy.name = str(final_folder / training.MODEL_FILE)  # type: ignore[attr-defined]
+    training._write_json(folder / policies.SIDECAR_NAME, sidecar)
+    policy = load_policy(str(folder / policies.MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
+    policy.name = str(final_folder / policies.MODEL_NAME)  # type: ignore[attr-defined]
     result = evaluate(policy, config.env_id, episodes=eval_episodes, seed=eval_seed,
                       env_kwargs=dict(config.env_kwargs), progress=progress)  # fmt: skip
     evaluation = result.to_dict()
@@ -466,7 +467,7 @@ def _seed_result(
     own = time.perf_counter() - started
     wall = timings["compile_seconds"] + timings["train_seconds"] + own
     sidecar.update(eval_seconds=round(own, 2), wall_seconds=round(wall, 2))
-    training._write_json(folder / training.SIDECAR_FILE, sidecar)
+    training._write_json(folder / policies.SIDECAR_NAME, sidecar)
     return training.run_summary(config, evaluation, timings["train_seconds"], wall) | {
         "compile_seconds": round(timings["compile_seconds"], 2)
     }
