@@ -18,14 +18,12 @@ from heartpole.evaluation import (
     EvaluationResult,
     baselines,
     compare,
-    confidence_interval,
     evaluate,
     rank,
-    standard_error,
-    t_quantile_975,
 )
 from heartpole.model import alertness_decay, heart_attack_risk, productivity
 from heartpole.policies import ExpertPolicy, ReferencePolicy
+from heartpole.stats import standard_error
 
 EPISODES = 2000
 RISK_AT_REST = 0.5 / (1.0 + math.exp(6.0))  # heart_attack_risk(0): the floor of every step
@@ -40,48 +38,6 @@ def runs() -> dict[str, EvaluationResult]:
 def within(estimate: float, known: float, se: float, extra: float = 0.0) -> bool:
     """|estimate - known| < 4 standard errors, ``extra`` being the known value's own uncertainty (an SE)."""
     return abs(estimate - known) < 4.0 * math.sqrt(se**2 + extra**2)
-
-
-# ------------------------------------------------------------------------------------------------------
-# statistics
-
-
-@pytest.mark.parametrize(
-    ("dof", "quantile"),
-    [(1, 12.7062), (4, 2.7764), (9, 2.2622), (10, 2.2281), (19, 2.0930), (30, 2.0423), (100, 1.9840), (10**6, 1.9600)],
-)
-def test_t_quantile_matches_tables(dof: int, quantile: float) -> None:
-    assert t_quantile_975(dof) == pytest.approx(quantile, abs=1e-4)
-
-
-def test_interval_edge_cases() -> None:
-    assert all(math.isnan(x) for x in confidence_interval(np.array([3.0])))
-    assert confidence_interval(np.full(10, 2.5)) == (2.5, 2.5)
-    low, high = confidence_interval(np.array([1.0, 2.0, 3.0]))
-    assert (low + high) / 2 == pytest.approx(2.0) and high - low == pytest.approx(2 * 4.3027 / math.sqrt(3))
-    assert math.isnan(standard_error(np.array([1.0])))
-
-
-def coverage(samples: np.ndarray, mean: float) -> float:
-    hits = [low <= mean <= high for low, high in map(confidence_interval, samples)]
-    return float(np.mean(hits))
-
-
-def test_interval_covers_95_percent_of_small_normal_samples() -> None:
-    """n = 5: the t interval covers 95%; a normal-quantile interval would cover only ~88%."""
-    rng = np.random.default_rng(2024)
-    reps = 4000
-    rate = coverage(rng.normal(3.0, 2.0, (reps, 5)), 3.0)
-    assert abs(rate - 0.95) < 4 * math.sqrt(0.95 * 0.05 / reps)
-
-
-def test_interval_covers_95_percent_of_heart_attack_returns() -> None:
-    """A population like HeartPole's returns: score - 100 x Poisson(1.236) heart attacks, 200 episodes."""
-    rng = np.random.default_rng(7)
-    reps = 4000
-    samples = 0.33 - 100.0 * rng.poisson(1.236, (reps, 200))
-    rate = coverage(samples, 0.33 - 123.6)
-    assert abs(rate - 0.95) < 4 * math.sqrt(0.95 * 0.05 / reps)
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -435,27 +435,6 @@ def test_train_seeds_writes_one_folder_per_seed_and_a_summary(tmp_path: Path) ->
 
 
 # ------------------------------------------------------------------------------------------------------
-# aggregates
-
-
-def test_interquartile_mean_is_rliables() -> None:
-    assert training.interquartile_mean([5, 1, 3, 2, 4]) == pytest.approx(3.0)  # cuts 1 each side of 5
-    assert training.interquartile_mean([1, 2, 3, 4, 5, 6, 7, 100]) == pytest.approx(4.5)  # cuts 2 each side
-    assert training.interquartile_mean([1, 2, 9]) == pytest.approx(4.0)  # fewer than 4: the mean
-    values = np.random.default_rng(0).normal(size=(3, 12))
-    rows = training.interquartile_mean(values, axis=1)
-    assert rows == pytest.approx([np.sort(v)[3:9].mean() for v in values])
-
-
-def test_bootstrap_interval_is_deterministic_and_brackets_the_iqm() -> None:
-    values = [0.31, 0.32, 0.325, 0.30, 0.10]
-    interval = training.bootstrap_interval(values)
-    assert interval == training.bootstrap_interval(values)
-    assert interval[0] <= training.interquartile_mean(values) <= interval[1]
-    assert training.bootstrap_interval([2.0, 2.0, 2.0]) == (2.0, 2.0)
-
-
-# ------------------------------------------------------------------------------------------------------
 # output folders
 
 

@@ -44,6 +44,7 @@ from heartpole.policies import (
     policy_name,
     quiet_version_warnings,
 )
+from heartpole.stats import confidence_interval, t_quantile_975
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
@@ -58,8 +59,6 @@ of 2,000, and ~3x faster than of 1,000)."""
 
 ENV_STREAM, POLICY_STREAM = 0, 1
 """The seed's spawn keys of the envs' episodes and of random policies, kept apart."""
-_Z975 = 1.959963984540054
-_T975_SMALL = {1: 12.7062, 2: 4.3027, 3: 3.1824, 4: 2.7764, 5: 2.5706, 6: 2.4469, 7: 2.3646, 8: 2.3060, 9: 2.2622}
 
 SOLVED_REGRET = 0.01
 """The proposed "solved" bar as a regret: the upper end of the 95% regret interval over 2,000 evaluation
@@ -85,49 +84,6 @@ PUBLISHED_TABLE1: tuple[tuple[str, str, float], ...] = (
 )
 """Table 1 of the HEALTHINF abstract on HeartPole: (algorithm, model, mean return over 20 episodes)."""
 PUBLISHED_EPISODES = 20
-
-
-# ------------------------------------------------------------------------------------------------------
-# statistics
-
-
-def t_quantile_975(dof: int) -> float:
-    """The 97.5% quantile of Student's t with ``dof`` degrees of freedom (NaN for ``dof < 1``).
-
-    Exact to four decimals for ``dof < 10`` (a table), a Cornish-Fisher expansion beyond (error < 1e-5).
-    """
-    if dof < 1:
-        return math.nan
-    if dof in _T975_SMALL:
-        return _T975_SMALL[dof]
-    z = _Z975
-    terms = (
-        (z**3 + z) / 4,
-        (5 * z**5 + 16 * z**3 + 3 * z) / 96,
-        (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / 384,
-        (79 * z**9 + 776 * z**7 + 1482 * z**5 - 1920 * z**3 - 945 * z) / 92160,
-    )
-    quantile: float = z + sum(term / dof ** (k + 1) for k, term in enumerate(terms))  # int ** int is Any
-    return quantile
-
-
-def standard_error(values: np.ndarray) -> float:
-    """The standard error of the mean of ``values`` (NaN for fewer than two)."""
-    values = np.asarray(values, dtype=np.float64)
-    if len(values) < 2:
-        return math.nan
-    return float(values.std(ddof=1) / math.sqrt(len(values)))
-
-
-def confidence_interval(values: np.ndarray) -> tuple[float, float]:
-    """The 95% Student-t interval for the mean of ``values``: ``mean -+ t * sd / sqrt(n)``.
-
-    ``(nan, nan)`` for fewer than two values.
-    """
-    values = np.asarray(values, dtype=np.float64)
-    mean = float(values.mean()) if len(values) else math.nan
-    half = t_quantile_975(len(values) - 1) * standard_error(values)
-    return (mean - half, mean + half)
 
 
 def _finite(value: float) -> float | None:

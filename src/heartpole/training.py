@@ -76,6 +76,7 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
     SIDECAR_NAME,
     VECNORMALIZE_NAME,
 )
+from heartpole.stats import bootstrap_interval, interquartile_mean
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -954,40 +955,6 @@ def seeds_summary(
 # aggregates across seeds
 
 AGGREGATED = ("mean_return", "expected_return", "heart_attacks_per_episode", "score", "wall_seconds")
-
-
-def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> float | np.ndarray:
-    """The mean of the middle half: ``floor(n / 4)`` values cut from each end (``scipy.stats.trim_mean(x,
-    0.25)``, which rliable uses); with fewer than 4 values, the plain mean."""
-    array = np.sort(np.asarray(values, dtype=np.float64), axis=axis)
-    n = array.shape[axis]
-    if n == 0:
-        raise ValueError("the interquartile mean of no values is undefined")
-    cut = n // 4
-    return np.take(array, np.arange(cut, n - cut), axis=axis).mean(axis=axis)
-
-
-def bootstrap_interval(
-    values: Sequence[float],
-    statistic: Callable[..., Any] = interquartile_mean,
-    *,
-    resamples: int = 10_000,
-    confidence: float = 0.95,
-    seed: int = 0,
-) -> tuple[float, float]:
-    """A percentile-bootstrap interval of ``statistic`` over ``values`` (resampled with replacement).
-
-    ``statistic`` is called on a ``(resamples, n)`` array with ``axis=1``. Deterministic for a given ``seed``.
-    """  # fmt: skip
-    array = np.asarray(values, dtype=np.float64)
-    if array.size == 0:
-        raise ValueError("a bootstrap interval needs at least one value")
-    rng = np.random.default_rng(seed)
-    samples = array[rng.integers(0, array.size, size=(resamples, array.size))]
-    stats = statistic(samples, axis=1)
-    tail = (1.0 - confidence) / 2.0 * 100.0
-    low, high = np.percentile(stats, [tail, 100.0 - tail])
-    return float(low), float(high)
 
 
 def aggregate(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

@@ -30,7 +30,6 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.evaluation import confidence_interval
 from heartpole.model import (
     ALERTNESS,
     HYPERTENSION,
@@ -46,6 +45,7 @@ from heartpole.offline.behaviour import action_probabilities
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
 from heartpole.policies import Policy, load_policy, policy_name
+from heartpole.stats import confidence_interval
 
 ESTIMATORS = ("PDIS", "WPDIS", "FQE", "DR")
 DEFAULT_RIDGE = 1e-6

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from heartpole.evaluation import chunk_seed, confidence_interval, plus_minus, policy_rng
+from heartpole.evaluation import chunk_seed, plus_minus, policy_rng
 from heartpole.offline.behaviour import check_actions
 from heartpole.policies import Policy, load_policy, policy_name, quiet_version_warnings
+from heartpole.stats import confidence_interval
 
 if TYPE_CHECKING:
     from gymnasium.spaces import Discrete
