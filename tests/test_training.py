@@ -21,9 +21,10 @@ pytest.importorskip("stable_baselines3")
 torch = pytest.importorskip("torch")
 
 from stable_baselines3.common.monitor import Monitor  # noqa: E402
+from stable_baselines3.common.vec_env import VecNormalize  # noqa: E402
 
 import heartpole  # noqa: E402
-from heartpole import training  # noqa: E402
+from heartpole import policies, training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
 from heartpole.model import TIME_ELAPSED, WORK_DONE  # noqa: E402
 from heartpole.training import (  # noqa: E402
@@ -272,7 +273,7 @@ def test_tutorial_preset_is_the_tutorial_setup() -> None:
         assert getattr(model, name) == getattr(reference, name), name
     layers = [m for m in model.q_net.q_net if isinstance(m, torch.nn.Linear)]
     assert [(m.in_features, m.out_features) for m in layers] == [(6, 16), (16, 16), (16, 4)]
-    assert not isinstance(env, training.VecNormalize)
+    assert not isinstance(env, VecNormalize)
 
 
 def test_default_preset_is_ppo_on_the_shaped_reward() -> None:
@@ -392,7 +393,7 @@ def test_train_run_writes_files_that_load_and_act(tmp_path: Path, algo: str) -> 
     assert summary["score"] == evaluation["score"] and summary["seed"] == 3
     with (folder / "learning_curve.csv").open() as handle:
         reader = csv.DictReader(handle)
-        assert tuple(reader.fieldnames or ()) == training.CURVE_COLUMNS
+        assert tuple(reader.fieldnames or ()) == policies.CURVE_COLUMNS
         assert all(np.isfinite(float(row["mean_return"])) for row in reader)
     policy = load_policy(str(folder / "model.zip"), "HeartPole-v0")
     venv = gym.make_vec("HeartPole-v0", num_envs=32, vectorization_mode="vector_entry_point")

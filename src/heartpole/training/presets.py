@@ -1,0 +1,279 @@
+"""Training configurations: :class:`TrainConfig`, the presets, preset files and the solved bars."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
+    SB3_ALGORITHMS,
+)
+
+if TYPE_CHECKING:
+    pass
+
+from heartpole.training.outputs import _write_json
+from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
+
+SOLVED_HEART_ATTACKS = 1.30
+"""Issue 3's bar for HeartPole-v0: at most this many heart attacks per episode over 2,000 evaluation
+episodes ..."""
+SOLVED_SCORE = 0.30
+"""... and at least this final productivity score. Other envs have their own bar,
+:func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+RATE_SHARE_OF_BEST = 0.98
+"""The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
+0.68 for v1."""
+
+
+# ------------------------------------------------------------------------------------------------------
+# configurations and presets
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything a training run depends on; :func:`train_run` records it in ``heartpole.json``.
+
+    Attributes:
+        algo: ``"ppo"``, ``"a2c"`` or ``"dqn"``.
+        preset: the preset it came from (informative).
+        env_id: the HeartPole id to train on.
+        timesteps: env steps to train for (all envs together).
+        n_envs: episodes stepped side by side by the adapter.
+        seed: seeds the model (PyTorch, NumPy) and the env.
+        net_arch: hidden layer sizes of the MLP (actor and critic each, or the Q-network).
+        hyperparameters: keyword arguments of the SB3 algorithm (``gamma``, ``learning_rate``, ...).
+        reward: the training reward.
+        normalize_observations, normalize_rewards: use ``VecNormalize`` for observations / rewards.
+        reward_stats_window: cap of VecNormalize's reward-statistics sample count (``None``: no cap).
+        env_kwargs: the env's keyword arguments.
+    """
+
+    algo: str = "ppo"
+    preset: str = "default"
+    env_id: str = "HeartPole-v0"
+    timesteps: int = 400_000
+    n_envs: int = 16
+    seed: int = 0
+    net_arch: tuple[int, ...] = (64, 64)
+    hyperparameters: Mapping[str, Any] = field(default_factory=dict)
+    reward: TrainingReward = SHAPED_REWARD
+    normalize_observations: bool = True
+    normalize_rewards: bool = True
+    reward_stats_window: float | None = 100_000
+    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.algo not in SB3_ALGORITHMS:
+            raise ValueError(f"unknown algorithm {self.algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
+        for name in ("timesteps", "n_envs"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise ValueError(f"seed must be a whole number >= 0, got {self.seed!r}")
+        if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
+            raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+
+    @property
+    def gamma(self) -> float:
+        """The discount factor (SB3's default 0.99 unless the hyperparameters set one)."""
+        return float(self.hyperparameters.get("gamma", 0.99))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe."""
+        out = asdict(self)
+        out["net_arch"] = list(self.net_arch)
+        out["hyperparameters"] = dict(self.hyperparameters)
+        out["env_kwargs"] = dict(self.env_kwargs)
+        out["reward"] = {**asdict(self.reward), "description": self.reward.describe()}
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
+        """The inverse of :meth:`to_dict` (``reward["description"]`` is ignored); unknown keys raise ValueError."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"unknown configuration keys {unknown}; known: {', '.join(sorted(known))}")
+        values = dict(data)
+        if "reward" in values:
+            reward = {k: v for k, v in dict(values["reward"]).items() if k != "description"}
+            values["reward"] = TrainingReward(**reward)
+        if "net_arch" in values:
+            values["net_arch"] = tuple(int(n) for n in values["net_arch"])
+        for key in ("hyperparameters", "env_kwargs"):
+            if key in values:
+                values[key] = dict(values[key])
+        return cls(**values)
+
+
+DEFAULT_HYPERPARAMETERS: Mapping[str, Mapping[str, Any]] = {
+    # PPO: 16 envs x 128 steps per update, big minibatches (few gradient steps, fast on 2 cores), a
+    # discount matching the reward's time scales, and an entropy bonus so the policy keeps trying to
+    # stay awake while it learns that sleeping at once undoes the drinking it is unlearning.
+    "ppo": {
+        "n_steps": 128,
+        "batch_size": 512,
+        "n_epochs": 10,
+        "learning_rate": 3e-4,
+        "gamma": 0.95,
+        "gae_lambda": 0.95,
+        "clip_range": 0.2,
+        "ent_coef": 0.01,
+    },
+    "a2c": {
+        "n_steps": 16,
+        "learning_rate": 7e-4,
+        "gamma": 0.95,
+        "gae_lambda": 0.95,
+        "ent_coef": 0.01,
+    },
+    "dqn": {
+        "learning_rate": 2.5e-4,
+        "buffer_size": 200_000,
+        "learning_starts": 10_000,
+        "batch_size": 256,
+        "gamma": 0.95,
+        "train_freq": 1,
+        "gradient_steps": 1,
+        "target_update_interval": 2_000,
+        "exploration_fraction": 0.2,
+        "exploration_final_eps": 0.01,
+    },
+}
+
+PRESETS = ("default", "tutorial")
+PRESET_HELP = {
+    "default": "the settings that solve HeartPole-v0: shaped reward, VecNormalize, 16 envs, tuned PPO",
+    "tutorial": "the tutorial's setup: SB3 defaults, net_arch [16, 16], the env's own reward, one env",
+}
+DEFAULT_ALGO = {"default": "ppo", "tutorial": "dqn"}
+DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
+
+
+def preset_config(
+    preset: str = "default", algo: str | None = None, *, score_rate: float | str = "best", **overrides: Any
+) -> TrainConfig:
+    """The :class:`TrainConfig` of ``preset`` for ``algo`` (default: the preset's own), with ``overrides``.
+
+    ``default`` trains on the shaped reward with VecNormalize and 16 envs, with the hyperparameters of
+    :data:`DEFAULT_HYPERPARAMETERS`; PPO is the one that solves HeartPole-v0. ``tutorial`` is the
+    tutorial's run: SB3's default hyperparameters, ``net_arch=[16, 16]``, the env's reward, no
+    normalisation, one env and 500,000 timesteps (DQN unless ``algo`` says otherwise).
+
+    ``score_rate`` is the shaped reward's rate (default preset only): ``"best"`` (default) is
+    :data:`RATE_SHARE_OF_BEST` of the trained env's best known score (0.32 for v0, 0.68 for v1; see
+    :func:`heartpole.registry.best_known_rate`), or ``"auto"`` where none is known; ``"auto"`` estimates
+    it while training; a number fixes it.
+
+    Raises:
+        ValueError: an unknown preset or algorithm, or a bad override.
+    """
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
+    algo = DEFAULT_ALGO[preset] if algo is None else algo
+    if algo not in SB3_ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
+    if preset == "tutorial":
+        if score_rate != "best":
+            raise ValueError("the tutorial preset trains on the env's own reward, which has no score rate")
+        base = TrainConfig(
+            algo=algo,
+            preset=preset,
+            timesteps=DEFAULT_TIMESTEPS[preset],
+            n_envs=1,
+            net_arch=(16, 16),
+            hyperparameters={},
+            reward=ENV_REWARD,
+            normalize_observations=False,
+            normalize_rewards=False,
+            reward_stats_window=None,
+        )
+        return replace(base, **overrides)
+    base = TrainConfig(algo=algo, preset=preset, hyperparameters=dict(DEFAULT_HYPERPARAMETERS[algo]))
+    config = replace(base, **overrides)
+    if "reward" not in overrides:
+        rate = shaped_reward_rate(config.env_id, config.env_kwargs, score_rate)
+        config = replace(config, reward=replace(SHAPED_REWARD, score_rate=rate))
+    return config
+
+
+def shaped_reward_rate(
+    env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best"
+) -> float | Literal["auto"]:
+    """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
+    from heartpole.policies import env_dynamics
+    from heartpole.registry import best_known_rate
+
+    if score_rate == "auto":
+        return "auto"
+    if score_rate == "best":
+        best = best_known_rate(env_dynamics(env_id, env_kwargs))
+        return "auto" if best is None else round(RATE_SHARE_OF_BEST * best, 2)
+    number = isinstance(score_rate, (int, float)) and not isinstance(score_rate, bool) and math.isfinite(score_rate)
+    if not number:
+        raise ValueError(f"score_rate must be 'best', 'auto' or a finite number, got {score_rate!r}")
+    return float(score_rate)
+
+
+def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The solved bar of ``env_id`` (:func:`heartpole.registry.solved_bar`) as a JSON-safe dict."""
+    from heartpole.policies import env_dynamics
+    from heartpole.registry import solved_bar
+
+    bar = solved_bar(env_dynamics(env_id, env_kwargs))
+    return {"heart_attacks_per_episode_at_most": bar.heart_attacks_at_most, "score_at_least": bar.score_at_least}
+
+
+def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
+    """Whether an evaluation's heart attacks and score meet ``bar`` (from :func:`env_solved_bar`)."""
+    score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
+    return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
+
+
+PRESET_FORMAT = "heartpole-preset/1"
+"""The ``format`` field of a preset file (:func:`save_preset`)."""
+
+
+def save_preset(config: TrainConfig, path: str | os.PathLike[str], **notes: Any) -> Path:
+    """Write ``config`` (all but its seed) as a JSON preset file that ``heartpole train --preset FILE`` reads.
+
+    ``notes`` (e.g. where the configuration came from) are stored under ``"notes"`` and ignored on loading.
+    The file is written to a temporary name and moved into place.
+    """
+    path = Path(path)
+    data = {"format": PRESET_FORMAT, "config": {k: v for k, v in config.to_dict().items() if k != "seed"}}
+    if notes:
+        data["notes"] = notes
+    staging = path.with_name(f".{path.name}.partial")
+    _write_json(staging, data)
+    os.replace(staging, path)
+    return path
+
+
+def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
+    """The :class:`TrainConfig` of a preset file written by :func:`save_preset` (seed 0).
+
+    Raises:
+        ValueError: the file is not JSON, not a preset file, or holds a bad configuration.
+        OSError: the file cannot be read.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"preset file {path} is not JSON: {error}") from None
+    if not isinstance(data, dict) or data.get("format") != PRESET_FORMAT or not isinstance(data.get("config"), dict):
+        raise ValueError(f"{path} is not a preset file (expected a JSON object with format {PRESET_FORMAT!r})")
+    try:
+        return TrainConfig.from_dict(data["config"])
+    except TypeError as error:
+        raise ValueError(f"preset file {path}: {error}") from None
