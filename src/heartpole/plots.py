@@ -22,7 +22,7 @@ import numpy as np
 
 from heartpole import model
 from heartpole.model import Params
-from heartpole.policies import CURVE_COLUMNS, CURVE_NAME
+from heartpole.policies import CURVE_COLUMNS, CURVE_NAME, Policy
 from heartpole.render import EPISODE_START_MINUTES, landmarks
 
 if TYPE_CHECKING:
@@ -31,7 +31,6 @@ if TYPE_CHECKING:
 
     from heartpole.env import HeartPole
 
-Policy = Callable[[np.ndarray], Any]
 """A policy: an observation batch ``(n, obs_dim)`` float32 in, ``n`` integer actions out."""
 
 DPI = 100
