@@ -16,7 +16,7 @@ torch = pytest.importorskip("torch")
 
 import jax.numpy as jnp  # noqa: E402
 
-from heartpole import training  # noqa: E402
+from heartpole import plots, training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
 from heartpole.jax import ppo  # noqa: E402
 from heartpole.policies import load_policy  # noqa: E402
@@ -75,8 +75,8 @@ def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> Non
         folder = tmp_path / f"seed_{seed}"
         for name in ("model.zip", "vecnormalize.pkl", "heartpole.json", "learning_curve.csv", "evaluation.json"):
             assert (folder / name).is_file(), name
-        curve = training.read_curve(folder / "learning_curve.csv")
-        assert len(curve) == 4096 // (8 * 64) and curve[0]["timesteps"] == 8 * 64
+        curve = plots.read_learning_curve(folder / "learning_curve.csv")  # the one reader, the plots'
+        assert len(curve["timesteps"]) == 4096 // (8 * 64) and curve["timesteps"][0] == 8 * 64
         policy = load_policy(str(folder / "model.zip"), "HeartPole-v0", env_kwargs={"max_steps": 64})
         assert policy(np.zeros((3, 6), np.float32)).shape == (3,)
     code = main(["evaluate", "--policy", str(tmp_path / "seed_0" / "model.zip"), "--episodes", "10"])

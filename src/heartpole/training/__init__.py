@@ -67,7 +67,6 @@ from heartpole.training.outputs import (
     _versions,
     _write_json,
     check_output_folder,
-    read_curve,
     staged_output,
     write_curve,
 )
@@ -108,7 +107,6 @@ __all__ = [
     "check_output_folder",
     "staged_output",
     "write_curve",
-    "read_curve",
     "TrainingReward",
     "ENV_REWARD",
     "SHAPED_REWARD",

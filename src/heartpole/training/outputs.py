@@ -104,12 +104,6 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
             writer.writerow({key: row[key] for key in CURVE_COLUMNS})
 
 
-def read_curve(path: str | os.PathLike[str]) -> list[dict[str, float]]:
-    """Read a learning curve written by :func:`write_curve`."""
-    with Path(path).open(newline="") as handle:
-        return [{key: float(row[key]) for key in CURVE_COLUMNS} for row in csv.DictReader(handle)]
-
-
 def _write_json(path: Path, data: Any) -> None:
     path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
