@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import V0_VARIABLES, Variable
+from heartpole.model import V0_VARIABLES, Variable, check_integer
 
 Effects = Mapping[str, tuple[float, float]]
 
@@ -49,9 +49,7 @@ class Action:
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ValueError(f"Action name must be a non-empty identifier such as 'drink_tea', got {self.name!r}")
         object.__setattr__(self, "effects", _frozen_effects(self.name, self.effects))
-        rest = self.rest_half_hours
-        if isinstance(rest, bool) or not isinstance(rest, (int, np.integer)) or rest < 0:
-            raise ValueError(f"Action {self.name!r}: rest_half_hours must be an integer >= 0, got {rest!r}")
+        check_integer(f"Action {self.name!r}: rest_half_hours", self.rest_half_hours, 0)
         if not isinstance(self.sleeps, bool):
             raise ValueError(f"Action {self.name!r}: sleeps must be True or False, got {self.sleeps!r}")
 

@@ -56,7 +56,15 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from heartpole.actions import V0_ACTIONS
-from heartpole.model import V0_VARIABLES, Params, alertness_decay, ballmer, heart_attack_risk, productivity
+from heartpole.model import (
+    V0_VARIABLES,
+    Params,
+    alertness_decay,
+    ballmer,
+    check_integer,
+    heart_attack_risk,
+    productivity,
+)
 
 if TYPE_CHECKING:
     from heartpole.dynamics import Dynamics
@@ -202,8 +210,7 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
     """
     from heartpole.policies import env_dynamics
 
-    if isinstance(grid, bool) or not isinstance(grid, (int, np.integer)) or grid < 4:
-        raise ValueError(f"grid must be an integer >= 4, got {grid!r}")
+    check_integer("grid", grid, 4)
     dynamics = env_dynamics(env_id, env_kwargs)
     _check_covered(env_id, dynamics)
     return _solve(dynamics.params, int(grid), env_id, dict(env_kwargs))

@@ -17,7 +17,7 @@ from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.env import build_dynamics, check_render_mode, episode_length, observation_space
-from heartpole.model import Variable
+from heartpole.model import Variable, check_integer
 
 INFO_KEYS = ("action", "heart_attack", "heart_attack_risk", "productivity", "score")
 """The keys of a step's ``info`` (each with its ``_key`` mask)."""
@@ -70,8 +70,7 @@ class HeartPoleVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         **model_params: Any,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        check_integer("num_envs", num_envs, 1)
         check_render_mode(render_mode, self.metadata["render_modes"])
         modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
         if AutoresetMode(autoreset_mode) not in modes:

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from heartpole.evaluation import chunk_seed, plus_minus, policy_rng
+from heartpole.model import check_integer
 from heartpole.offline.behaviour import check_actions
 from heartpole.policies import Policy, load_policy, policy_name, quiet_version_warnings
 from heartpole.stats import confidence_interval
@@ -94,8 +95,7 @@ def true_value(
     """
     if not 0.0 < float(gamma) <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 2:
-        raise ValueError(f"episodes must be an integer >= 2, got {episodes!r}")
+    check_integer("episodes", episodes, 2)
     if isinstance(policy, str):
         rng = policy_rng(seed)
         act, name = load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng), policy

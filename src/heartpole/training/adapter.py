@@ -20,6 +20,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
+from heartpole.model import check_integer
 from heartpole.training.reward import ENV_REWARD, TrainingReward
 
 # ------------------------------------------------------------------------------------------------------
@@ -64,8 +65,7 @@ class HeartPoleSB3VecEnv(VecEnv):
         reward: TrainingReward = ENV_REWARD,
         env_kwargs: Mapping[str, Any] | None = None,
     ) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        check_integer("num_envs", num_envs, 1)
         from heartpole.policies import quiet_version_warnings
 
         self.env_id = env_id

@@ -10,8 +10,6 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-import numpy as np
-
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
@@ -20,6 +18,7 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
 if TYPE_CHECKING:
     pass
 
+from heartpole.model import check_integer
 from heartpole.training.outputs import _write_json
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
@@ -75,11 +74,8 @@ class TrainConfig:
         if self.algo not in SB3_ALGORITHMS:
             raise ValueError(f"unknown algorithm {self.algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
         for name in ("timesteps", "n_envs"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise ValueError(f"seed must be a whole number >= 0, got {self.seed!r}")
+            check_integer(name, getattr(self, name), 1)
+        check_integer("seed", self.seed, 0)
         if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
             raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
 
