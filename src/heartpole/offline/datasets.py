@@ -159,7 +159,7 @@ def record_dataset(
         "action_names": [a.name for a in dynamics.actions],
         "observation_names": list(dynamics.names),
         "infos": "action_probabilities (behaviour propensities), heart_attack_risk, productivity, heart_attack, score",
-        "reference_scores": "ref_min_score: random's expected return; ref_max_score: the expert's "
+        "reference_scores": "ref_min_score: random's expected return; ref_max_score: the optimum's (else the expert's) "
         f"({REFERENCE_EPISODES} episodes, expected-risk estimate)",
         "heartpole_version": _version(),
     }
@@ -234,12 +234,16 @@ def record_standard(
 
 @functools.lru_cache(maxsize=8)
 def reference_scores(env_id: str = "HeartPole-v0") -> tuple[float, float]:
-    """Minari's reference scores: random's and the expert's expected returns (expected-risk estimate)."""
+    """Minari's reference scores: random's expected return (expected-risk estimate) and the best known
+    policy's: the true optimum's (:mod:`heartpole.optimum`) where it is known, else the expert's."""
     from heartpole.evaluation import evaluate
+    from heartpole.optimum import available
 
     low = evaluate("random", env_id, REFERENCE_EPISODES, seed=0).expected_return
-    high = evaluate("expert", env_id, REFERENCE_EPISODES, seed=0).expected_return
-    return float(low), float(high)
+    solution = available(env_id)
+    if solution is not None:
+        return float(low), float(solution.expected_return)
+    return float(low), float(evaluate("expert", env_id, REFERENCE_EPISODES, seed=0).expected_return)
 
 
 # ------------------------------------------------------------------------------------------------------
