@@ -19,16 +19,15 @@ from heartpole.optimum import NotCoveredError
 from heartpole.policies import (
     BUILTIN_POLICIES,
     ExpertPolicy,
-    ModelPolicy,
     RandomPolicy,
     ReferencePolicy,
     act_batch,
-    detect_algorithm,
     env_dynamics,
     expert_rate,
     load_policy,
     make_policy,
 )
+from heartpole.training.models import ModelPolicy, detect_algorithm
 
 OBS = np.array(
     [
@@ -275,7 +274,7 @@ def test_vecnormalize_not_recorded_for_the_model_is_ignored_with_a_warning(model
 
 
 def test_recorded_vecnormalize_that_changed_or_vanished_is_refused(models, tmp_path) -> None:
-    from heartpole.policies import file_sha256
+    from heartpole.training.models import file_sha256
 
     path = _copy_model(models, tmp_path / "run", None)
     record = {"algo": "ppo", "model": "m.zip", "vecnormalize": "vecnormalize.pkl", "vecnormalize_sha256": "0" * 64}

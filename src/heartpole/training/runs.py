@@ -124,7 +124,7 @@ def train_run(
     if trained.normalizer is not None:
         trained.normalizer.save(str(folder / VECNORMALIZE_NAME))
     write_curve(folder / CURVE_NAME, trained.curve)
-    from heartpole.policies import file_sha256
+    from heartpole.training.models import file_sha256
 
     sidecar: dict[str, Any] = {
         "algo": config.algo,
