@@ -129,7 +129,7 @@ def test_the_compiled_float32_step_follows_the_python_step(action) -> None:
 
 def test_exp32_is_within_its_stated_error() -> None:
     exp32 = njit(lambda x: kernel.exp32(x))
-    for x in np.linspace(-87, 88, 20_001, dtype=np.float32):
+    for x in np.linspace(-87, 87, 20_001, dtype=np.float32):
         assert exp32(x) == pytest.approx(math.exp(float(x)), rel=3e-7)
     assert exp32(np.float32(-1000.0)) == pytest.approx(math.exp(-87.0), rel=3e-7)
     assert math.isfinite(exp32(np.float32(1000.0)))

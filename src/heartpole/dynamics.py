@@ -50,7 +50,9 @@ class Dynamics:
         self.variables = tuple(variables)
         self.names = tuple(v.name for v in self.variables)
         _check_definitions(self.actions, self.variables)
-        self.effects, self.tables = step_tables(self.actions, self.variables, self.params)
+        with np.errstate(over="ignore"):  # a number beyond float32 is refused just below, with its name
+            self.effects, self.tables = step_tables(self.actions, self.variables, self.params)
+        _check_float32(self.effects, self.tables)
         self.packed = kernel.pack(self.effects, self.tables)
         self.layout = kernel.layout(len(self.variables), len(self.tables.rest_offsets), len(self.actions))
 
@@ -100,6 +102,18 @@ def step_tables(
         wake_width=f32(wake_high - wake_low),
     )
     return tuple(effects), tables
+
+
+def _check_float32(effects: Sequence[ActionEffects], tables: StepTables) -> None:
+    """Refuse numbers that float32, the step's arithmetic, cannot hold (a variable's floor may be -inf)."""
+    named = [(f"action {i}'s {key}", value) for i, e in enumerate(effects) for key, value in e._asdict().items()]
+    named += [(key, value) for key, value in tables._asdict().items() if key != "floor"]
+    for name, value in named:
+        if not np.all(np.isfinite(np.asarray(value, dtype=np.float32))):
+            raise ValueError(
+                f"{name} is {value!r} in float32, the step's arithmetic: effects, their widths (high - low) and "
+                "parameters must be finite numbers below 3.4e38 in size"
+            )
 
 
 def _fade(variable: Variable, params: Params) -> float:

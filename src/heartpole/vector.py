@@ -73,7 +73,7 @@ class HeartPoleVectorEnv(VectorEnv):
         check_integer("num_envs", num_envs, 1)
         check_render_mode(render_mode, self.metadata["render_modes"])
         modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-        if AutoresetMode(autoreset_mode) not in modes:
+        if autoreset_mode not in modes and autoreset_mode not in [m.value for m in modes]:
             raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, got {autoreset_mode!r}")
         max_steps = episode_length(max_steps, max_episode_steps, max_steps_wins=True)
         self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
