@@ -548,18 +548,7 @@ def train_seeds(
             on_run(result)
     if single:
         return runs[0]
-    summary = {
-        "config": replace(config, seed=seeds[0]).to_dict() | {"seed": None},
-        "backend": "jax",
-        "seeds": seeds,
-        "eval_episodes": eval_episodes,
-        "eval_seed": eval_seed,
-        **{key: round(value, 2) for key, value in timings.items()},
-        "runs": runs,
-        "aggregate": training.aggregate(runs),
-        "solved_bar": {"heart_attacks_per_episode_at_most": training.SOLVED_HEART_ATTACKS,
-                       "score_at_least": training.SOLVED_SCORE},
-        "solved_seeds": sum(run["solved"] for run in runs),
-    }  # fmt: skip
+    summary = training.seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
+    summary |= {"backend": "jax", **{key: round(value, 2) for key, value in timings.items()}}
     training._write_json(folder / training.SUMMARY_FILE, summary)
     return summary
