@@ -8,7 +8,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import Any, NoReturn, TypeAlias
 
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """What ``register(subparsers)`` of each command module receives: ``ArgumentParser.add_subparsers()``."""
@@ -159,3 +159,10 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) ->
                 break
         raise
     return target
+
+
+def one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
+    """A subcommand's argument errors as one line on stderr and exit code 2, without argparse's usage block.
+    Install with ``parser.error = types.MethodType(one_line_error, parser)``."""
+    print(f"{parser.prog}: error: {message} (see {parser.prog} --help)", file=sys.stderr)
+    raise SystemExit(2)

@@ -13,9 +13,9 @@ import math
 import os
 import sys
 import types
-from typing import TYPE_CHECKING, Any, NoReturn, overload
+from typing import TYPE_CHECKING, Any, overload
 
-from heartpole.cli.common import CommandError, Subparsers, format_table
+from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
 from heartpole.evaluation import SOLVED_REGRET
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 
@@ -81,7 +81,7 @@ def register(subparsers: Subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.error = types.MethodType(_one_line_error, parser)  # type: ignore[method-assign]
+    parser.error = types.MethodType(one_line_error, parser)  # type: ignore[method-assign]
     parser.add_argument("--algo", metavar="ALGO", help="ppo, a2c or dqn (default: the preset's: ppo, or dqn)")
     parser.add_argument(
         "--preset",
@@ -119,12 +119,6 @@ def register(subparsers: Subparsers) -> None:
                      "(default: start Ray on this machine)")  # fmt: skip
     ray.add_argument("--cpus-per-trial", metavar="K", help="CPUs (and PyTorch threads) per seed (default 1)")
     parser.set_defaults(handler=run_train)
-
-
-def _one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
-    """Argument errors of ``heartpole train`` as one line on stderr, exit code 2 (no usage block)."""
-    print(f"heartpole train: error: {message} (see heartpole train --help)", file=sys.stderr)
-    raise SystemExit(2)
 
 
 # ------------------------------------------------------------------------------------------------------

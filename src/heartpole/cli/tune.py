@@ -12,9 +12,9 @@ import sys
 import types
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, Any
 
-from heartpole.cli.common import CommandError, Subparsers, format_table
+from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
     missing_ray_modules,
@@ -63,7 +63,7 @@ def register(subparsers: Subparsers) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.error = types.MethodType(_one_line_error, parser)  # type: ignore[method-assign]
+    parser.error = types.MethodType(one_line_error, parser)  # type: ignore[method-assign]
     parser.add_argument("--algo", default="ppo", metavar="ALGO", help="ppo or a2c (default: ppo)")
     parser.add_argument("--trials", default="20", metavar="N", help="trials to run (default 20)")
     parser.add_argument("--seeds-per-trial", default="2", metavar="K", help="seeds each trial trains (default 2)")
@@ -81,11 +81,6 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--cpus-per-trial", default="1", metavar="K", help="CPUs per trial (default 1)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     parser.set_defaults(handler=run_tune)
-
-
-def _one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
-    print(f"heartpole tune: error: {message} (see heartpole tune --help)", file=sys.stderr)
-    raise SystemExit(2)
 
 
 def build_settings(args: argparse.Namespace) -> SearchSettings:
