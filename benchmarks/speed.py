@@ -46,8 +46,10 @@ SINGLE_ENVS: dict[str, Factory] = {
 VECTOR_ENVS: dict[str, Callable[[int], Any]] = {
     "CartPoleVectorEnv": lambda n: CartPoleVectorEnv(num_envs=n),
     "HeartPoleVectorEnv": lambda n: heartpole.HeartPoleVectorEnv(n),
+    "HeartPole-v1": lambda n: gym.make_vec("HeartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"),
 }
 VECTOR_GOALS = {256: 2.0, 1024: 3.0, 16384: 5.0, 65536: 3.0}
+V1_SIZE = 16384
 SINGLE_GOALS = {"HeartPole-v0": 3.0, "make:HeartPole-v0": 2.5}
 
 
@@ -129,6 +131,12 @@ def section_vector(repeats: int, sizes: list[int]) -> None:
             repeats, partial(fresh, "HeartPoleVectorEnv", n, steps), partial(fresh, "CartPoleVectorEnv", n, steps)
         )
         report(f"HeartPoleVectorEnv n={n}", ratios, f"CartPoleVectorEnv n={n}", VECTOR_GOALS.get(n))
+    n = V1_SIZE  # v1's eight actions take another path (gathers, not masks): reported, no goal
+    steps = max(30, min(3000, 6_000_000 // n))
+    ratios = paired_ratios(
+        repeats, partial(fresh, "HeartPole-v1", n, steps), partial(fresh, "CartPoleVectorEnv", n, steps)
+    )
+    report(f"HeartPole-v1 vector env n={n}", ratios, f"CartPoleVectorEnv n={n}")
 
 
 def section_blas(repeats: int, n: int = 16384) -> None:
