@@ -245,10 +245,9 @@ def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np
 
 def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple[tuple[None, ...], ...]:
     """The ``layout`` argument of the kernels: tuples of ``None`` whose lengths are the numbers of
-    variables, rest offsets and per-action values. Compiled code is specialised on them, so its loops over
-    variables and actions have known lengths (LLVM unrolls them); ``None`` costs nothing to pass."""
-    per_action = num_actions * (3 * num_variables + 4)
-    return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * per_action)
+    variables, rest offsets and actions. Compiled code is specialised on them, so its loops over variables
+    and actions have known lengths (LLVM unrolls them); ``None`` costs nothing to pass."""
+    return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * num_actions)
 
 
 @njit(**JIT, **INLINE)
@@ -305,53 +304,47 @@ def _unpack(packed: Any, layout: Any) -> Any:
     return zeros, _tables(packed, zeros, _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1]))
 
 
-@njit(**JIT, **INLINE)
-def _by_action(packed: Any, layout: Any) -> Any:
-    """The per-action columns of :func:`pack`'s array as one flat tuple, column by column (item
-    ``c * num_actions + a`` is column ``c`` of action ``a``)."""
-    return _fixed(packed[: packed.shape[0] - 1].T.copy().ravel(), layout[2])
-
-
 STACK_TABLE_LIMIT = 4096
 """Action tables of up to this many numbers (16 kB; HeartPole-v1's has 200) go on the stack."""
 
 
 @intrinsic
-def _stack_floats_intrinsic(typingctx: Any, like: Any) -> Any:
-    """A pointer to ``len(like)`` float32 on the stack of the compiled function that calls it."""
-    count = len(like)
+def _stack_floats_intrinsic(typingctx: Any, actions: Any, zeros: Any) -> Any:
+    """A pointer to an action table's float32 (:func:`_action_table`) on the stack of the compiled function
+    that calls it: ``len(actions)`` rows of ``3 * len(zeros) + 4``."""
+    count = len(actions) * (3 * len(zeros) + 4)
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         return alloca_once(builder, context.get_value_type(nbtypes.float32), size=count)
 
     pointer: Any = nbtypes.CPointer
-    return pointer(nbtypes.float32)(like), codegen
+    return pointer(nbtypes.float32)(actions, zeros), codegen
 
 
 _stack_floats: Any = _stack_floats_intrinsic
 
 
 @njit(**JIT, **INLINE)
-def _action_table(packed: Any, layout: Any) -> Any:
+def _action_table(packed: Any, layout: Any, zeros: Any) -> Any:
     """:func:`pack`'s action rows, one after the other, copied to a flat array on the caller's stack.
 
-    The loop over envs reads each env's action effects from it (gathers). LLVM vectorises those reads
-    only from memory it knows no written array overlaps, which the caller's stack is, and ``packed`` is
-    not. A table too large for the stack (:data:`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
+    The loop over envs reads each env's action effects from it. LLVM vectorises those reads only from
+    memory it knows no written array overlaps, which the caller's stack is, and ``packed`` is not. A table
+    too large for the stack (:data:`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
     """
-    size = len(layout[2])
-    if size <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
-        table = carray(_stack_floats(layout[2]), size)
+    width = 3 * len(zeros) + 4
+    if len(layout[2]) * width <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
+        table = carray(_stack_floats(layout[2], zeros), len(layout[2]) * width)
     else:
-        table = np.empty(size, dtype=np.float32)
-    width = packed.shape[1]
-    for k in range(size):
-        table[k] = packed[k // width, k % width]
+        table = np.empty(len(layout[2]) * width, dtype=np.float32)
+    for a in range(len(layout[2])):
+        for c in range(width):
+            table[a * width + c] = packed[a, c]
     return table
 
 
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _action_table = lambda packed, layout: np.ascontiguousarray(packed[:-1]).ravel()  # type: ignore[assignment]  # noqa: E731
+    _action_table = lambda packed, layout, zeros: np.ascontiguousarray(packed[:-1]).ravel()  # type: ignore[assignment]  # noqa: E731
 
 
 VECTOR_WIDTH = 512
@@ -378,34 +371,34 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
 
 
 @njit(**JIT, **INLINE)
-def _chosen(by_action: Any, start: Any, num_actions: Any, action: Any) -> Any:
-    """``by_action[start + action]``, selected with masks."""
-    value = by_action[start]
-    for k in range(1, num_actions):
-        value = where(action == k, by_action[start + k], value)
+def _chosen(table: Any, column: Any, layout: Any, zeros: Any, action: Any) -> Any:
+    """The ``column`` of ``action``'s row of the action table, selected with masks (no gather)."""
+    width = 3 * len(zeros) + 4
+    value = table[U64(column)]
+    for k in range(1, len(layout[2])):
+        value = where(action == k, table[U64(k * width + column)], value)
     return value
 
 
 @njit(**JIT, **INLINE)
-def _chosen_tuple(by_action: Any, start: Any, num_actions: Any, action: Any, zeros: Any) -> Any:
+def _chosen_tuple(table: Any, start: Any, layout: Any, zeros: Any, action: Any) -> Any:
     values = zeros
     for v in range(len(zeros)):
-        values = tuple_setitem(values, v, _chosen(by_action, start + v * num_actions, num_actions, action))
+        values = tuple_setitem(values, v, _chosen(table, start + v, layout, zeros, action))
     return values
 
 
 @njit(**JIT, **INLINE)
-def chosen_effects(by_action: Any, action: Any, zeros: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` of ``action`` from :func:`_unpack`'s ``by_action``."""
+def chosen_effects(table: Any, layout: Any, zeros: Any, action: Any) -> Any:
+    """The :class:`heartpole.model.ActionEffects` of ``action`` from the action table, selected with masks."""
     n = len(zeros)
-    a = len(by_action) // (3 * n + 4)
     return model.ActionEffects(
-        _chosen_tuple(by_action, 0, a, action, zeros),
-        _chosen_tuple(by_action, n * a, a, action, zeros),
-        _chosen_tuple(by_action, 2 * n * a, a, action, zeros),
-        _chosen(by_action, 3 * n * a, a, action),
-        _chosen(by_action, (3 * n + 1) * a, a, action),
-        _chosen(by_action, (3 * n + 2) * a, a, action),
+        _chosen_tuple(table, 0, layout, zeros, action),
+        _chosen_tuple(table, n, layout, zeros, action),
+        _chosen_tuple(table, 2 * n, layout, zeros, action),
+        _chosen(table, 3 * n, layout, zeros, action),
+        _chosen(table, 3 * n + 1, layout, zeros, action),
+        _chosen(table, 3 * n + 2, layout, zeros, action),
     )
 
 
@@ -431,8 +424,8 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
     _wide_vectors()
     zeros, t = _unpack(packed, layout)
     n = len(zeros)
-    selected = len(layout[2]) <= SELECTED_ACTIONS * (3 * n + 4)  # known when compiling: one branch stays
-    by_action, table, width = _by_action(packed, layout), _action_table(packed, layout), U64(packed.shape[1])
+    table, width = _action_table(packed, layout, zeros), U64(3 * n + 4)
+    selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
         s = zeros
@@ -440,7 +433,7 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
             s = tuple_setitem(s, v, envs[U64(v), i])
         u = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
         if selected:
-            effects = chosen_effects(by_action, actions[i], zeros)
+            effects = chosen_effects(table, layout, zeros, actions[i])
         else:
             effects = action_effects(table, U64(actions[i]) * width, zeros)
         s, reward, worked, risk, attack, new_score = _step(s, effects, u, t)
