@@ -118,11 +118,12 @@ def where(condition: Any, a: Any, b: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def stored(x: Any) -> Any:
-    """``x`` as the state keeps it: a subnormal float32 (below ~1.2e-38) becomes 0. Fading values (blood
-    pressure, alcohol, THC) would otherwise stick at a subnormal for ever (times 0.97 rounds back to itself)
-    and make every later step several times slower; CPUs compute subnormals in microcode."""
-    return where(abs(x) < SMALLEST_NORMAL, F32(0.0), x)
+def stored(variable: Any, x: Any) -> Any:
+    """``x`` as the state keeps it for ``variable``: a subnormal float32 (below ~1.2e-38) becomes 0. Fading
+    values (blood pressure, alcohol, THC) would otherwise stick at a subnormal for ever (times 0.97 rounds
+    back to itself) and make every later step several times slower; CPUs compute subnormals in microcode.
+    The variables the step keeps itself (time and work) never fade and are kept as they are."""
+    return x if _kept_by_the_step(variable) else where(abs(x) < SMALLEST_NORMAL, F32(0.0), x)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -438,7 +439,7 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
             effects = action_effects(table, U64(actions[i]) * width, zeros)
         s, reward, worked, risk, attack, new_score = _step(s, effects, u, t)
         for v in range(n):
-            envs[U64(v), i] = stored(s[v])
+            envs[U64(v), i] = stored(v, s[v])
         rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
         results[0][i] = reward
         results[1][i] = worked
@@ -462,7 +463,7 @@ def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any
     u = draws(rng[KEY_LOW], rng[KEY_HIGH], rng[COUNTER], zeros)
     s, reward, worked, risk, attack, new_score = _step(s, action_effects(packed[action], U64(0), zeros), u, t)
     for v in range(len(zeros)):
-        state[v] = stored(s[v])
+        state[v] = stored(v, s[v])
     rng[COUNTER] = add32(rng[COUNTER], U32(1))
     return reward, worked, risk, attack, new_score
 
