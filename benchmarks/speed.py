@@ -89,16 +89,21 @@ def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0) -> floa
     return steps * num_envs / (time.perf_counter() - start)
 
 
-def measure(env: str, num_envs: int, steps: int) -> float:
-    """One measurement in this process: a single env when ``num_envs`` is 0, else a vector env."""
+def measure(env: str, num_envs: int, steps: int, faults: bool = False) -> float:
+    """One measurement in this process: a single env when ``num_envs`` is 0, else a vector env (its page
+    faults a step with ``faults``)."""
+    if faults:
+        return page_faults(VECTOR_ENVS[env](num_envs), steps)
     if num_envs == 0:
         return single_rate(SINGLE_ENVS[env], steps)
     return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps)
 
 
-def fresh(env: str, num_envs: int, steps: int, environment: dict[str, str] | None = None) -> float:
+def fresh(
+    env: str, num_envs: int, steps: int, environment: dict[str, str] | None = None, faults: bool = False
+) -> float:
     """:func:`measure` in a fresh Python process (with ``environment`` instead of this one's, if given)."""
-    command = [sys.executable, __file__, "--measure", env, str(num_envs), str(steps)]
+    command = [sys.executable, __file__, "--measure", env, str(num_envs), str(steps)] + (["--faults"] * faults)
     return float(subprocess.run(command, check=True, capture_output=True, text=True, env=environment).stdout)
 
 
@@ -219,18 +224,18 @@ def section_anatomy(n: int = 16384) -> None:
     print(f"  CartPoleVectorEnv.step  {anchor:5.0f} us")
     for env_id in ("HeartPole-v0", "HeartPole-v1"):
         anatomy(env_id, n, anchor)
-    print("page faults a step (minor faults over 500 steps, each step's results kept until the next returns)")
+    print("page faults a step (minor faults over 500 steps in a fresh process, each step's results kept until")
+    print("the next returns; they depend on the allocator's history, so on what else the process did)")
     for size in (16384, 65536):
-        cartpole_faults = page_faults(CartPoleVectorEnv(num_envs=size), 2)
-        heartpole_faults = page_faults(heartpole.HeartPoleVectorEnv(size), 4)
-        print(f"  n={size:<6} HeartPoleVectorEnv {heartpole_faults:6.1f}   CartPoleVectorEnv {cartpole_faults:6.1f}")
+        faults = {name: fresh(name, size, 500, faults=True) for name in ("HeartPoleVectorEnv", "CartPoleVectorEnv")}
+        print("  " + "   ".join(f"{name} n={size}: {count:.1f}" for name, count in faults.items()))
 
 
-def page_faults(env: Any, num_actions: int, steps: int = 500) -> float:
+def page_faults(env: Any, steps: int) -> float:
     """Minor page faults per step of the vector env ``env`` under random actions."""
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    actions = [rng.integers(0, num_actions, size=env.num_envs) for _ in range(8)]
+    actions = [rng.integers(0, env.single_action_space.n, size=env.num_envs) for _ in range(8)]
     results = None
     for t in range(20):
         results = env.step(actions[t % 8])
@@ -289,10 +294,11 @@ def main() -> None:
     )
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 1024, 16384, 65536], help="vector sizes")
     parser.add_argument("--measure", nargs=3, metavar=("ENV", "NUM_ENVS", "STEPS"), help=argparse.SUPPRESS)
+    parser.add_argument("--faults", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
         env, num_envs, steps = args.measure
-        print(measure(env, int(num_envs), int(steps)))
+        print(measure(env, int(num_envs), int(steps), args.faults))
         return
     repeats = args.repeats or (3 if args.quick else 7)
     print(
