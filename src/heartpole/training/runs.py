@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -31,6 +31,9 @@ from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
 from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, _write_json, write_curve
 from heartpole.training.presets import TrainConfig, env_solved_bar, meets_bar
+
+RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
+"""Called with each seed's summary (:func:`run_summary`) as it finishes."""
 
 # ------------------------------------------------------------------------------------------------------
 # training
@@ -201,7 +204,7 @@ def train_seeds(
     eval_episodes: int = 2000,
     eval_seed: int = 0,
     progress: bool = False,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
+    on_run: RunCallback | None = None,
     final_folder: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Train ``config`` once per seed into ``folder/seed_<s>/`` and write ``folder/summary.json``.
