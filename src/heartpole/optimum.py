@@ -129,6 +129,12 @@ class OptimumSolution:
         threshold = self.thresholds[np.broadcast_to(n, t.shape), np.minimum(t, self.max_awake - 1)]
         return ~inside | (np.asarray(alertness, dtype=np.float64) < threshold)
 
+    def within(self, interval: tuple[float, float]) -> bool:
+        """Whether :attr:`expected_return` lies in ``interval`` (an evaluator's 95% interval, say) widened by
+        the grid's :attr:`error_bound` on both sides."""
+        low, high = interval
+        return bool(low - self.error_bound <= self.expected_return <= high + self.error_bound)
+
     def summary(self) -> dict[str, Any]:
         """JSON-safe figures of the solution (no arrays)."""
         return {

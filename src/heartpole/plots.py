@@ -55,6 +55,20 @@ def require_matplotlib() -> None:
         raise ImportError('plots need matplotlib: pip install "heartpole[plot]"') from error
 
 
+def require_video_writer(suffix: str) -> None:
+    """Raise ``ImportError`` naming what is missing if videos of type ``suffix`` cannot be written: ``.mp4``
+    needs imageio and imageio-ffmpeg, ``.gif`` Pillow."""
+    try:
+        if suffix == ".mp4":
+            import imageio  # noqa: F401
+            import imageio_ffmpeg  # noqa: F401
+        else:
+            import PIL  # noqa: F401
+    except ImportError as error:
+        needed = "imageio and imageio-ffmpeg" if suffix == ".mp4" else "Pillow"
+        raise ImportError(f"{suffix} videos need {needed}") from error
+
+
 def _figure(width: float, height: float) -> Figure:
     """A new figure on matplotlib's Agg canvas, detached from pyplot (no display, no global state)."""
     require_matplotlib()

@@ -27,6 +27,7 @@ import logging
 import math
 import os
 import re
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -437,6 +438,35 @@ def can_resume(folder: str | os.PathLike[str]) -> bool:
     """Whether ``folder`` holds a search that :func:`tune_search` can resume."""
     folder = Path(folder).resolve()
     return (folder / SEARCH_SETTINGS_FILE).is_file() and tune.Tuner.can_restore(str(folder / SEARCH_NAME))
+
+
+def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, force: bool = False) -> Path:
+    """Check, before any trial runs, that a search may run in ``folder``; return it as an absolute ``Path``.
+
+    With ``resume`` it must hold a search to continue. Otherwise it must be missing or empty, or, with
+    ``force``, hold an earlier search (its :data:`SEARCH_SETTINGS_FILE`), which is then removed: ``force``
+    never removes anything else.
+
+    Raises:
+        ValueError: ``resume`` with ``force``, nothing to resume, a file in the way, a non-empty folder
+            without ``force``, or with ``force`` a folder that holds no search.
+    """
+    out = Path(folder).resolve()
+    if resume:
+        if force:
+            raise ValueError("--resume continues the search in --out and --force replaces it: give one")
+        if not can_resume(out):
+            raise ValueError(f"--resume: no search to continue in {out}")
+        return out
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()):
+        if not force:
+            raise ValueError(f"--out {out} is not empty; pass --resume to continue its search or --force to replace")
+        if not (out / SEARCH_SETTINGS_FILE).is_file():
+            raise ValueError(f"--out {out} holds no search ({SEARCH_SETTINGS_FILE}); refusing to replace it")
+        shutil.rmtree(out)
+    return out
 
 
 def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:

@@ -140,8 +140,7 @@ def format_solution(solution: Any, checks: dict[str, Any]) -> str:
     lines = [header, format_table(["measure", "value", "note"], rows)]
     if "optimal" in checks:
         result = checks["optimal"]
-        inside = result.expected_ci95[0] - solution.error_bound <= solution.expected_return
-        inside &= solution.expected_return <= result.expected_ci95[1] + solution.error_bound
+        inside = solution.within(result.expected_ci95)
         lines.append(
             f"the evaluator's 95% interval for `optimal` ({result.episodes} episodes, seed {result.seed}) "
             + ("contains" if inside else "does NOT contain")

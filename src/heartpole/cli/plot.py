@@ -236,12 +236,9 @@ def _default_steps(env_id: str) -> int:
 
 def _check_video_writer(suffix: str) -> None:
     """A clear error before any work when the writer for ``suffix`` is not installed."""
+    from heartpole import plots
+
     try:
-        if suffix == ".mp4":
-            import imageio  # noqa: F401
-            import imageio_ffmpeg  # noqa: F401
-        else:
-            import PIL  # noqa: F401
-    except ImportError:
-        needed = "imageio and imageio-ffmpeg" if suffix == ".mp4" else "Pillow"
-        raise CommandError(f"{suffix} videos need {needed}; {INSTALL_HINT}") from None
+        plots.require_video_writer(suffix)
+    except ImportError as error:
+        raise CommandError(f"{error}; {INSTALL_HINT}") from None
