@@ -36,6 +36,14 @@ class Action:
             (fact 1: fresh alertness, ``time_since_slept`` reset), after any rest.
         fact: the one-line fact behind the action, for the manual.
         source: where the fact comes from.
+
+    >>> tea = Action("drink_tea", effects={"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)})
+    >>> tea.is_drink, tea.effects["alertness"]
+    (True, (0.0, 0.5))
+    >>> Action("drink_tea", effects={"alertness": (0.5, 0.0)})
+    Traceback (most recent call last):
+    ...
+    ValueError: Action 'drink_tea': effect on 'alertness' must be finite numbers with low <= high, got (0.5, 0.0)
     """
 
     name: str

@@ -331,6 +331,12 @@ def evaluate(
     Raises:
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
         FileNotFoundError: a model path that does not exist.
+
+    >>> result = evaluate("expert", "HeartPole-v0", episodes=20, seed=0, env_kwargs={"max_steps": 100})
+    >>> result.policy, result.episodes, result.max_steps
+    ('expert', 20, 100)
+    >>> result.expected_ci95[0] <= result.expected_return <= result.expected_ci95[1]
+    True
     """
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
@@ -387,6 +393,10 @@ def compare(
     """Evaluate two policies with common random numbers and pair their episodes: ``a - b``.
 
     Arguments are :func:`evaluate`'s; both policies see the same seed and chunking.
+
+    >>> pair = compare("expert", "nothing", episodes=20, env_kwargs={"max_steps": 100})
+    >>> pair.a.policy, pair.b.policy, pair.expected_difference == pair.a.expected_return - pair.b.expected_return
+    ('expert', 'nothing', True)
     """
     options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     a = evaluate(policy_a, env_id, episodes, seed, **options)

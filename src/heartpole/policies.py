@@ -423,6 +423,13 @@ def load_policy(
     Raises:
         ValueError: unknown name, or a file that is not a usable model for this env.
         FileNotFoundError: a path that does not exist.
+
+    A policy maps a batch of observations to a batch of action indices:
+
+    >>> import numpy as np
+    >>> policy = load_policy("coffee")
+    >>> policy(np.zeros((3, 6), dtype=np.float32))
+    array([1, 1, 1])
     """
     dynamics = env_dynamics(env_id, env_kwargs)
     if spec in BUILTIN_POLICIES:

@@ -175,6 +175,16 @@ def register_variant(
         ValueError: a malformed or taken id; an action or variable of the wrong type, shape or value, or
             with a missing or unknown field; duplicate names; an effect on a variable the variant lacks or
             that the step keeps itself; an unknown parameter or one out of range.
+
+    >>> import gymnasium as gym
+    >>> import heartpole
+    >>> tea = heartpole.Action("drink_tea", effects={"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)})
+    >>> spec = register_variant("TeaPole-v0", [*heartpole.V0_ACTIONS, tea], max_steps=200, replace=True)
+    >>> spec.max_episode_steps
+    200
+    >>> env = gym.make("TeaPole-v0")
+    >>> env.action_space, env.unwrapped.actions[4].name
+    (Discrete(5), 'drink_tea')
     """
     _check_id(id, replace)
     try:

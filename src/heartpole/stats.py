@@ -50,6 +50,10 @@ def confidence_interval(values: np.ndarray) -> tuple[float, float]:
     """The 95% Student-t interval for the mean of ``values``: ``mean -+ t * sd / sqrt(n)``.
 
     ``(nan, nan)`` for fewer than two values.
+
+    >>> low, high = confidence_interval([1.0, 2.0, 3.0])  # 2 -+ 4.3027 / sqrt(3)
+    >>> round(low, 4), round(high, 4)
+    (-0.4842, 4.4842)
     """
     values = np.asarray(values, dtype=np.float64)
     mean = float(values.mean()) if len(values) else math.nan
@@ -59,7 +63,11 @@ def confidence_interval(values: np.ndarray) -> tuple[float, float]:
 
 def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> float | np.ndarray:
     """The mean of the middle half: ``floor(n / 4)`` values cut from each end (``scipy.stats.trim_mean(x,
-    0.25)``, which rliable uses); with fewer than 4 values, the plain mean."""
+    0.25)``, which rliable uses); with fewer than 4 values, the plain mean.
+
+    >>> float(interquartile_mean([1, 2, 3, 4, 5, 6, 7, 100]))  # 1, 2, 7 and 100 cut
+    4.5
+    """
     array = np.sort(np.asarray(values, dtype=np.float64), axis=axis)
     n = array.shape[axis]
     if n == 0:
@@ -79,6 +87,11 @@ def bootstrap_interval(
     """A percentile-bootstrap interval of ``statistic`` over ``values`` (resampled with replacement).
 
     ``statistic`` is called on a ``(resamples, n)`` array with ``axis=1``. Deterministic for a given ``seed``.
+
+    >>> values = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+    >>> low, high = bootstrap_interval(values, seed=0)
+    >>> low < float(interquartile_mean(values)) < high, bootstrap_interval(values, seed=0) == (low, high)
+    (True, True)
     """  # fmt: skip
     array = np.asarray(values, dtype=np.float64)
     if array.size == 0:

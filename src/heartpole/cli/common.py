@@ -54,7 +54,14 @@ def raise_arg(message: str) -> None:
 
 
 def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    """A plain-text table with right-aligned numbers, for the terminal."""
+    """A plain-text table with right-aligned numbers, for the terminal.
+
+    >>> print(format_table(["policy", "score"], [["expert", 0.3268], ["nothing", 0.15]]))
+    policy   score
+    -------  -----
+    expert   0.327
+    nothing  0.150
+    """
     cells = [[str(h) for h in headers]] + [[_cell(v) for v in row] for row in rows]
     widths = [max(len(row[i]) for row in cells) for i in range(len(headers))]
     lines = []

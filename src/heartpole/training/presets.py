@@ -173,6 +173,12 @@ def preset_config(
 
     Raises:
         ValueError: an unknown preset or algorithm, or a bad override.
+
+    >>> config = preset_config("tutorial")
+    >>> config.algo, config.net_arch, config.n_envs, config.reward.is_env_reward
+    ('dqn', (16, 16), 1, True)
+    >>> preset_config(env_id="HeartPole-v1").reward.score_rate  # 98% of v1's best known score
+    0.68
     """
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
