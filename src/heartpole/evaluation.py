@@ -551,7 +551,7 @@ def plus_minus(value: float, interval: tuple[float, float]) -> str:
     return f"{value:.{decimals}f} +- {half:.{decimals}f}"
 
 
-def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[Any]]]:
+def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[object]]]:
     """Headers and rows of the results table (best expected-risk return first), values as text."""
     headers = [
         "rank",
@@ -581,9 +581,11 @@ def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[lis
     return headers, rows
 
 
-def published_rows(sd: float = 110.0) -> tuple[list[str], list[list[Any]]]:
+def published_rows(sd: float = 110.0) -> tuple[list[str], list[list[object]]]:
     """Headers and rows of the published Table 1, with the 95% half-width its 20 episodes allow."""
     half = t_quantile_975(PUBLISHED_EPISODES - 1) * sd / math.sqrt(PUBLISHED_EPISODES)
     headers = ["algorithm", "model", f"mean return ({PUBLISHED_EPISODES} episodes)", "95% CI at sd 110"]
-    rows = [[algo, model, f"{value:.2f}", f"+-{half:.0f}"] for algo, model, value in PUBLISHED_TABLE1]
+    rows: list[list[object]] = [
+        [algo, model, f"{value:.2f}", f"+-{half:.0f}"] for algo, model, value in PUBLISHED_TABLE1
+    ]
     return headers, rows

@@ -261,7 +261,7 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
 
 
 def optimum_for(
-    dynamics: Any, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
+    dynamics: Dynamics, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
 ) -> OptimumSolution:
     """:func:`optimum` for a :class:`~heartpole.dynamics.Dynamics` (``env_id`` and ``env_kwargs`` label it)."""
     _check_covered(env_id, dynamics)
@@ -863,7 +863,7 @@ def _params_dict(params: Params) -> dict[str, Any]:
     return out
 
 
-def _json_default(value: Any) -> Any:
+def _json_default(value: object) -> float | int | list[object]:
     if isinstance(value, (np.integer, np.floating)):
         return value.item()
     if isinstance(value, tuple):

@@ -31,8 +31,6 @@ if TYPE_CHECKING:
 
     from heartpole.env import HeartPole
 
-"""A policy: an observation batch ``(n, obs_dim)`` float32 in, ``n`` integer actions out."""
-
 DPI = 100
 ACTION_COLORS = {
     "do_nothing": "#7f8c8d",

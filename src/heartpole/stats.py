@@ -9,10 +9,17 @@ them against known values.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
+
+
+class Statistic(Protocol):
+    """A statistic of values along an axis, as NumPy's reductions are: ``statistic(array, axis=1)``."""
+
+    def __call__(self, values: np.ndarray, /, *, axis: int) -> float | np.ndarray: ...
+
 
 _Z975 = 1.959963984540054
 _T975_SMALL = {1: 12.7062, 2: 4.3027, 3: 3.1824, 4: 2.7764, 5: 2.5706, 6: 2.4469, 7: 2.3646, 8: 2.3060, 9: 2.2622}
@@ -78,7 +85,7 @@ def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> 
 
 def bootstrap_interval(
     values: Sequence[float],
-    statistic: Callable[..., Any] = interquartile_mean,
+    statistic: Statistic = interquartile_mean,
     *,
     resamples: int = 10_000,
     confidence: float = 0.95,

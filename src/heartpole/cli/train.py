@@ -24,7 +24,7 @@ from heartpole.evaluation import SOLVED_REGRET
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 
 if TYPE_CHECKING:
-    from heartpole.training import TrainConfig
+    from heartpole.training import ScoreRate, TrainConfig
 
 ORDER = 20
 
@@ -206,9 +206,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     return replace(config, **overrides)
 
 
-def _score_rate(text: str) -> float | str:
+def _score_rate(text: str) -> ScoreRate:
     if text in ("best", "auto"):
-        return text
+        return "best" if text == "best" else "auto"
     try:
         value = float(text)
     except ValueError:

@@ -7,9 +7,12 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeAlias
+from typing import Any, TypeAlias
 
 import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
@@ -19,14 +22,6 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
     VECNORMALIZE_NAME,
 )
 from heartpole.stats import bootstrap_interval, interquartile_mean
-
-if TYPE_CHECKING:
-    pass
-
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
-
 from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
 from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, _write_json, write_curve
