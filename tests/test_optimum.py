@@ -237,3 +237,11 @@ def test_without_heart_attack_risk_a_drinking_policy_far_outscores_the_no_drink_
     assert math.isnan(result.regret)  # the solver does not certify an optimum here
     with pytest.raises(NotCoveredError, match="proclivity=0"):
         solve_drinking(Params(), 1.0, sweeps=1)
+
+
+def test_within_widens_the_interval_by_the_grid_error(v0: OptimumSolution) -> None:
+    value, bound = v0.expected_return, v0.error_bound
+    assert v0.within((value - 0.01, value + 0.01))
+    assert v0.within((value + bound / 2, value + 1.0))  # just above the interval's low end, inside the bound
+    assert not v0.within((value + 2 * bound + 1e-9, value + 1.0))
+    assert not v0.within((value - 1.0, value - 2 * bound - 1e-9))

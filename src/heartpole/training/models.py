@@ -13,7 +13,7 @@ import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -33,6 +33,27 @@ from heartpole.policies import (
 )
 
 
+class RunningStats(Protocol):
+    """Running mean and variance of observations, as SB3's ``RunningMeanStd`` keeps them."""
+
+    @property
+    def mean(self) -> np.ndarray: ...
+    @property
+    def var(self) -> np.ndarray: ...
+
+
+class Normalizer(Protocol):
+    """What :class:`ModelPolicy` reads of SB3's ``VecNormalize``: the statistics and how they are applied
+    (``norm_obs``, when present and false, turns normalisation off)."""
+
+    @property
+    def obs_rms(self) -> RunningStats: ...
+    @property
+    def epsilon(self) -> float: ...
+    @property
+    def clip_obs(self) -> float: ...
+
+
 class ModelPolicy:
     """A Stable-Baselines3 model as a :data:`Policy`: optional observation normalisation, then
     ``model.predict(obs, deterministic=True)``.
@@ -44,7 +65,7 @@ class ModelPolicy:
         name: the policy's name in results tables.
     """
 
-    def __init__(self, model: Predictor, normalizer: Any = None, name: str = "model") -> None:
+    def __init__(self, model: Predictor, normalizer: Normalizer | None = None, name: str = "model") -> None:
         self.model = model
         self.name = name
         self.normalization = _normalization(normalizer)
@@ -84,7 +105,7 @@ def _one_torch_thread() -> Iterator[None]:
             torch.set_num_threads(threads)
 
 
-def _normalization(normalizer: Any) -> tuple[np.ndarray, np.ndarray, float] | None:
+def _normalization(normalizer: Normalizer | None) -> tuple[np.ndarray, np.ndarray, float] | None:
     if normalizer is None or not getattr(normalizer, "norm_obs", True):
         return None
     rms = normalizer.obs_rms
@@ -240,7 +261,7 @@ def _load_model(path: Path, algo: str) -> BaseAlgorithm:
         raise ValueError(f"{path}: cannot load it as a {algo.upper()} model ({_one_line(error)})") from None
 
 
-def _check_spaces(path: Path, model: Any, dynamics: Dynamics) -> None:
+def _check_spaces(path: Path, model: BaseAlgorithm, dynamics: Dynamics) -> None:
     obs_shape = (len(dynamics.variables),)
     model_obs = tuple(getattr(model.observation_space, "shape", ()) or ())
     model_actions = getattr(model.action_space, "n", None)
@@ -251,7 +272,7 @@ def _check_spaces(path: Path, model: Any, dynamics: Dynamics) -> None:
         )
 
 
-def _load_normalizer(path: Path) -> Any:
+def _load_normalizer(path: Path) -> Normalizer:
     try:
         with path.open("rb") as handle:
             normalizer = pickle.load(handle)

@@ -8,17 +8,13 @@ import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole.model import check_integer
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
-
-if TYPE_CHECKING:
-    pass
-
-from heartpole.model import check_integer
 from heartpole.training.outputs import _write_json
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
@@ -28,6 +24,9 @@ episodes ..."""
 SOLVED_SCORE = 0.30
 """... and at least this final productivity score. Other envs have their own bar,
 :func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+ScoreRate: TypeAlias = Literal["best", "auto"] | float
+"""How a preset sets the shaped reward's rate: ``"best"`` (:data:`RATE_SHARE_OF_BEST` of the env's best known
+score), ``"auto"`` (estimated while training) or the rate itself. See :func:`preset_config`."""
 RATE_SHARE_OF_BEST = 0.98
 """The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
 0.68 for v1."""
@@ -157,7 +156,7 @@ DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
 
 
 def preset_config(
-    preset: str = "default", algo: str | None = None, *, score_rate: float | str = "best", **overrides: Any
+    preset: str = "default", algo: str | None = None, *, score_rate: ScoreRate = "best", **overrides: Any
 ) -> TrainConfig:
     """The :class:`TrainConfig` of ``preset`` for ``algo`` (default: the preset's own), with ``overrides``.
 
@@ -173,6 +172,12 @@ def preset_config(
 
     Raises:
         ValueError: an unknown preset or algorithm, or a bad override.
+
+    >>> config = preset_config("tutorial")
+    >>> config.algo, config.net_arch, config.n_envs, config.reward.is_env_reward
+    ('dqn', (16, 16), 1, True)
+    >>> preset_config(env_id="HeartPole-v1").reward.score_rate  # 98% of v1's best known score
+    0.68
     """
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
@@ -204,7 +209,7 @@ def preset_config(
 
 
 def shaped_reward_rate(
-    env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best"
+    env_id: str, env_kwargs: Mapping[str, Any], score_rate: ScoreRate = "best"
 ) -> float | Literal["auto"]:
     """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
     from heartpole.policies import env_dynamics

@@ -7,9 +7,12 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, TypeAlias
 
 import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
@@ -19,18 +22,13 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
     VECNORMALIZE_NAME,
 )
 from heartpole.stats import bootstrap_interval, interquartile_mean
-
-if TYPE_CHECKING:
-    pass
-
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
-
 from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
 from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, _write_json, write_curve
 from heartpole.training.presets import TrainConfig, env_solved_bar, meets_bar
+
+RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
+"""Called with each seed's summary (:func:`run_summary`) as it finishes."""
 
 # ------------------------------------------------------------------------------------------------------
 # training
@@ -201,7 +199,7 @@ def train_seeds(
     eval_episodes: int = 2000,
     eval_seed: int = 0,
     progress: bool = False,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
+    on_run: RunCallback | None = None,
     final_folder: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Train ``config`` once per seed into ``folder/seed_<s>/`` and write ``folder/summary.json``.
