@@ -167,10 +167,11 @@ def test_train_ray_writes_what_the_sequential_path_writes_with_identical_results
         ray_run, plain_run = comparable(ray_out / f"seed_{seed}"), comparable(plain_out / f"seed_{seed}")
         ray_run["evaluation"]["policy"] = plain_run["evaluation"]["policy"]  # type: ignore[index]
         assert ray_run == plain_run
-    timing = ("train_seconds", "wall_seconds")
+    timing = ("train_seconds", "wall_seconds", "cpu_seconds")
     ray_summary = json.loads((ray_out / "summary.json").read_text())
     plain_summary = json.loads((plain_out / "summary.json").read_text())
     for summary in (ray_summary, plain_summary):
+        assert summary.pop("cpu_seconds") == pytest.approx(sum(run["cpu_seconds"] for run in summary["runs"]))
         summary["runs"] = [{k: v for k, v in run.items() if k not in timing} for run in summary["runs"]]
         summary["aggregate"].pop("wall_seconds")
     assert ray_summary == plain_summary

@@ -58,6 +58,8 @@ PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
 TUNE_SUMMARY_FILE = "tune_summary.json"
 SEARCHABLE = ("ppo", "a2c")
+TIMINGS = ("wall_seconds", "cpu_seconds")
+"""A trial's timings, summed over its seeds: the wall time of its runs and their CPU time."""
 """Algorithms with a default search space (DQN has neither ``n_steps`` nor ``ent_coef``)."""
 
 
@@ -401,6 +403,7 @@ def _search_trial(
             "mean_return": aggregate["mean_return"]["iqm"],
             "solved_seeds": summary["solved_seeds"],
             "wall_seconds": sum(run["wall_seconds"] for run in summary["runs"]),
+            **training.cpu_total(summary["runs"]),
         }
     )
 
@@ -573,7 +576,7 @@ def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result],
             failures.append(failure)
             row["error"] = failure.error
         else:
-            for key in (OBJECTIVE, "score", "heart_attacks_per_episode", "mean_return", "solved_seeds", "wall_seconds"):
+            for key in (OBJECTIVE, "score", "heart_attacks_per_episode", "mean_return", "solved_seeds", *TIMINGS):
                 row[key] = (result.metrics or {}).get(key)
         trials.append(row)
     trials.sort(key=lambda row: row["trial"])
@@ -585,7 +588,7 @@ def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result],
         "trials": trials,
         "failed": [f.to_dict() for f in failures],
         "best": best,
-    }
+    } | training.cpu_total(done)
     _write_trials_csv(folder / TRIALS_FILE, trials)
     if best is not None:
         params = {k: best[k] for k in dict(grid[0].config or {}) if k in best}

@@ -355,6 +355,11 @@ def format_run(run: dict[str, Any]) -> str:
     )
 
 
+def format_cpu(what: str, seconds: float) -> str:
+    """One line for the CPU time ``what`` took, in seconds and CPU-hours (what it costs on any machine)."""
+    return f"CPU time of {what}: {seconds:,.0f} s ({seconds / 3600:.2f} CPU-hours)"
+
+
 def format_regret(run: dict[str, Any]) -> str:
     """A run's regret with its 95% interval, or ``-`` where no optimum is known."""
     if run.get("regret") is None:
@@ -403,5 +408,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines = [format_table(headers, rows), "", f"across {agg['seeds']} seeds, interquartile mean [95% bootstrap CI]:"]
     lines += [f"  {label:<22} {figure}" for label, figure in aggregate_figures(agg) if label != "wall time (s)"]
     lines.append(f"solved ({describe_bar(summary['solved_bar'])}): {summary['solved_seeds']} of {agg['seeds']} seeds")
+    if "cpu_seconds" in summary:
+        lines.append(format_cpu("the runs (training and evaluation)", summary["cpu_seconds"]))
     lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary.get("failed", ())]
     return "\n".join(lines)

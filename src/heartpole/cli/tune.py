@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
+    format_cpu,
     missing_ray_modules,
     missing_training_modules,
     whole_number,
@@ -186,5 +187,7 @@ def format_trials(summary: dict[str, Any]) -> str:
     lines.append(
         f"best: trial {best['trial']}, expected-risk return {best['objective']:.3f}, score {best['score']:.4f}"
     )
+    if "cpu_seconds" in summary:
+        lines.append(format_cpu("the finished trials (training and evaluation)", summary["cpu_seconds"]))
     lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary["failed"]]
     return "\n".join(lines)

@@ -116,7 +116,7 @@ def train_run(
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     trained = train_model(config, progress=progress)
     trained.model.save(folder / MODEL_NAME)
     if trained.normalizer is not None:
@@ -155,15 +155,20 @@ def train_run(
     evaluation = result.to_dict()
     _write_json(folder / EVALUATION_FILE, evaluation)
     eval_seconds = time.perf_counter() - eval_started
-    sidecar.update(eval_seconds=round(eval_seconds, 2), wall_seconds=round(time.perf_counter() - started, 2))
+    sidecar.update(
+        eval_seconds=round(eval_seconds, 2),
+        wall_seconds=round(time.perf_counter() - started, 2),
+        cpu_seconds=round(time.process_time() - cpu_started, 2),
+    )
     _write_json(folder / SIDECAR_NAME, sidecar)
-    return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"])
+    return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"], sidecar["cpu_seconds"])
 
 
 def run_summary(
-    config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float
+    config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float, cpu: float | None = None
 ) -> dict[str, Any]:
-    """One run's line in a summary: seed, evaluation figures, whether it is solved, timings.
+    """One run's line in a summary: seed, evaluation figures, whether it is solved, timings (``cpu``: the
+    CPU time of the process that trained and evaluated it, all its threads, where measured).
 
     Solved means a regret whose 95% upper bound is at most :data:`heartpole.evaluation.SOLVED_REGRET` where
     the optimum is known (:mod:`heartpole.optimum`), and the env's heart-attack and score bar elsewhere.
@@ -188,7 +193,7 @@ def run_summary(
         "solved_bar": bar if by_regret is None else {"regret_at_most": SOLVED_REGRET},
         "train_seconds": round(train_seconds, 2),
         "wall_seconds": round(wall, 2),
-    }
+    } | ({} if cpu is None else {"cpu_seconds": round(cpu, 2)})
 
 
 def train_seeds(
@@ -250,7 +255,15 @@ def seeds_summary(
         "aggregate": aggregate(runs),
         "solved_bar": runs[0]["solved_bar"] if runs else env_solved_bar(config.env_id, config.env_kwargs),
         "solved_seeds": sum(run["solved"] for run in runs),
-    }
+    } | cpu_total(runs)
+
+
+def cpu_total(runs: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """``{"cpu_seconds": total}`` over ``runs`` when every run measured its CPU time, else ``{}``: the
+    figure that says what a number of seeds costs, wherever and however side by side they ran."""
+    if not runs or any(run.get("cpu_seconds") is None for run in runs):
+        return {}
+    return {"cpu_seconds": round(sum(float(run["cpu_seconds"]) for run in runs), 2)}
 
 
 # ------------------------------------------------------------------------------------------------------
