@@ -194,7 +194,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
             if args.preset == "tutorial" and score_rate != "best":
                 raise ValueError("--score-rate applies to the default preset; the tutorial trains on the env's reward")
             algo = args.algo.lower() if args.algo else None
-            return preset_config(args.preset, algo, score_rate=score_rate, **overrides)
+            backend = getattr(args, "backend", "sb3")
+            backend = backend if backend in BACKENDS else "sb3"  # run_train refuses others
+            return preset_config(args.preset, algo, score_rate=score_rate, backend=backend, **overrides)
         config = load_preset(args.preset)
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
