@@ -66,8 +66,9 @@ examples:
 
 --backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
 is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
-later runs skip most of the compile time. It saves the same files (an SB3 model.zip with the trained
-weights), so heartpole evaluate and heartpole plot read them alike.
+later runs skip most of the compile time. Its default preset differs in two numbers: minibatches of 256
+(twice the gradient steps for the same arithmetic) and 250,000 steps. It saves the same files (an SB3
+model.zip with the trained weights), so heartpole evaluate and heartpole plot read them alike.
 """
 BACKENDS = ("sb3", "jax")
 
