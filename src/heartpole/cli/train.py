@@ -70,8 +70,9 @@ examples:
 
 --backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
 is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
-later runs skip most of the compile time. It saves the same files (an SB3 model.zip with the trained
-weights), so heartpole evaluate and heartpole plot read them alike.
+later runs skip most of the compile time. Its default preset differs in two numbers: minibatches of 256
+(twice the gradient steps for the same arithmetic) and 250,000 steps. It saves the same files (an SB3
+model.zip with the trained weights), so heartpole evaluate and heartpole plot read them alike.
 """
 
 
@@ -176,7 +177,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
     from dataclasses import replace
 
-    from heartpole.training import load_preset, preset_config
+    from heartpole.training import BACKENDS, load_preset, preset_config
 
     is_file = args.preset not in PRESETS and (args.preset.endswith(".json") or os.path.isfile(args.preset))
     if args.preset not in PRESETS and not is_file:
@@ -197,7 +198,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
             if args.preset == "tutorial" and score_rate != "best":
                 raise ValueError("--score-rate applies to the default preset; the tutorial trains on the env's reward")
             algo = args.algo.lower() if args.algo else None
-            return preset_config(args.preset, algo, score_rate=score_rate, **overrides)
+            backend = getattr(args, "backend", "sb3")
+            backend = backend if backend in BACKENDS else "sb3"  # run_train refuses others
+            return preset_config(args.preset, algo, score_rate=score_rate, backend=backend, **overrides)
         config = load_preset(args.preset)
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None

@@ -11,15 +11,13 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Literal, TypeAlias
+from typing import Any
 
 from heartpole.training.outputs import check_output_folder, staged_output
-from heartpole.training.presets import TrainConfig
+from heartpole.training.presets import BACKENDS, Backend, TrainConfig
 from heartpole.training.runs import RunCallback, train_run, train_seeds
 
-Backend: TypeAlias = Literal["sb3", "jax"]
-"""``"sb3"``: Stable-Baselines3 (PyTorch); ``"jax"``: :mod:`heartpole.jax.ppo`, the whole run compiled."""
-BACKENDS: tuple[Backend, ...] = ("sb3", "jax")
+__all__ = ["BACKENDS", "Backend", "check_run", "default_out", "train"]
 
 
 def default_out(config: TrainConfig, backend: Backend = "sb3") -> str:

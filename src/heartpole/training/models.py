@@ -10,7 +10,7 @@ import pickle
 import sys
 import warnings
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -70,6 +70,7 @@ class ModelPolicy:
         self.name = name
         self.normalization = _normalization(normalizer)
         self.normalizer_path: Path | None = None  # the file the statistics came from, when loaded from one
+        self._greedy = _greedy_actor(model)
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """Observations as the model saw them in training (VecNormalize's formula), float32."""
@@ -80,8 +81,41 @@ class ModelPolicy:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         with _one_torch_thread():
+            if self._greedy is not None:
+                return self._greedy(self.normalize(_observations(obs)))
             actions, _ = self.model.predict(self.normalize(_observations(obs)), deterministic=True)
         return np.asarray(actions, dtype=np.int64).reshape(-1)
+
+
+def _greedy_actor(model: Any) -> Callable[[np.ndarray], np.ndarray] | None:
+    """For a PPO or A2C model with discrete actions, ``predict(obs, deterministic=True)`` without its
+    detours: the actor's logits and their argmax, in inference mode; ``None`` for any other model.
+
+    ``predict`` takes the argmax of the softmax of the same logits (the same action, but where two logits
+    round to one probability), and spends a third of an evaluation's time building the distribution and
+    toggling training mode on every call.
+    """
+    policy = getattr(model, "policy", None)
+    if "torch" not in sys.modules or policy is None:
+        return None
+    from stable_baselines3.common.distributions import CategoricalDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    if type(policy) is not ActorCriticPolicy or not isinstance(policy.action_dist, CategoricalDistribution):
+        return None
+    torch = sys.modules["torch"]
+    policy.set_training_mode(False)
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        with torch.inference_mode():
+            # given the actor's extractor, extract_features returns one tensor (a pair only without one)
+            features: Any = policy.extract_features(
+                torch.as_tensor(obs, device=policy.device), policy.pi_features_extractor
+            )
+            logits = policy.action_net(policy.mlp_extractor.forward_actor(features))
+            return np.asarray(logits.argmax(dim=1).cpu().numpy(), dtype=np.int64)
+
+    return act
 
 
 @contextmanager

@@ -44,6 +44,19 @@ class TrainedModel:
     seconds: float
 
 
+@dataclass(frozen=True)
+class LinearSchedule:
+    """A learning rate falling linearly from ``initial`` to 0 over the run: SB3 calls it with the share of
+    the run left after the rollout it is about to learn from (``anneal_learning_rate`` in the
+    hyperparameters; the JAX trainer follows the same schedule)."""
+
+    initial: float
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The learning rate with ``progress_remaining`` (1 at the start, 0 at the end) of the run left."""
+        return self.initial * max(progress_remaining, 0.0)
+
+
 def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
     """The SB3 model of ``config`` on a freshly made, seeded adapter (``VecNormalize``-wrapped if asked)."""
     import stable_baselines3 as sb3
@@ -60,6 +73,8 @@ def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
     )
     algorithm = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}[config.algo]
     hyperparameters = dict(config.hyperparameters)
+    if hyperparameters.pop("anneal_learning_rate", False):
+        hyperparameters["learning_rate"] = LinearSchedule(float(hyperparameters.get("learning_rate", 3e-4)))
     if config.algo == "ppo" and "batch_size" in hyperparameters:  # a minibatch cannot exceed the rollout
         rollout = int(hyperparameters.get("n_steps", 2048)) * config.n_envs
         hyperparameters["batch_size"] = min(int(hyperparameters["batch_size"]), rollout)
