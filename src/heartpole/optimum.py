@@ -36,8 +36,9 @@ and sleeps so far; an exact ``E[work / time]`` optimum would also condition on t
 independent solver measured to be worth about 1e-5 of return.
 
 Also here: :func:`sleep_rule_value`, the exact expected return of any no-drink sleep rule (``expert``'s
-regret without sampling), and :func:`solve_drinking`, a stationary grid DP for
-``heart_attack_proclivity=0``, where drinking pays: its policy is a lower bound, not a certified optimum.
+regret without sampling), and :func:`solve_drinking`, a grid DP for ``heart_attack_proclivity=0``, where
+drinking pays: its stationary policy is a lower bound and its whole-episode value an upper bound on the grid,
+not a certified optimum.
 """
 
 from __future__ import annotations
@@ -777,32 +778,30 @@ def drinking_rule_value(
     """``(E[work], E[time])`` of a fixed rule over ``decisions`` decisions from the episode's start, on the grid.
 
     ``rule(alertness, intoxication, t)`` gets arrays of grid states and returns the index of the action in
-    :data:`DRINKING_ACTIONS` order. This is how the grid is checked against the env's own dynamics (the
-    evaluator's episodes of the same rule with ``max_steps=decisions`` agree within their interval).
+    :data:`DRINKING_ACTIONS` order; it must only take actions the grid covers. This is how the grid is
+    checked against the env's own dynamics (the evaluator's episodes of the same rule with
+    ``max_steps=decisions`` agree within their interval).
     ``grid``: :func:`solve_drinking`'s grid arguments.
     """
     if params.heart_attack_proclivity * params.heart_attack_penalty != 0:
         raise NotCoveredError("drinking_rule_value leaves hypertension out: it needs heart_attack_proclivity=0")
     model = DrinkingGrid(params, **grid)
     actions = np.asarray(rule(*model.states()), dtype=np.int64)[None]
-    time_grid = replace_work(model, np.zeros_like(model.work))
+    idle = np.zeros_like(model.work)
     work = np.zeros(model.shape, dtype=np.float32)
     time = np.zeros(model.shape, dtype=np.float32)
     totals = [0.0, 0.0]
     for _ in range(check_integer("decisions", decisions, 1)):
         work = np.take_along_axis(model.action_values(work, 0.0), actions, 0)[0]
-        time = np.take_along_axis(time_grid.action_values(time, -1.0), actions, 0)[0]
+        time = np.take_along_axis(model.action_values(time, -1.0, idle), actions, 0)[0]
         totals[0] += model.recentre(work)
         totals[1] += model.recentre(time)
+    if min(totals) < NEVER / 2:
+        raise ValueError(
+            "the rule takes an action the grid does not cover from the episode's start (a drink that leaves "
+            "alertness_range or max_intoxication, or staying awake at max_awake - 1)"
+        )
     return totals[0], totals[1]
-
-
-def replace_work(grid: DrinkingGrid, work: np.ndarray) -> DrinkingGrid:
-    """A copy of ``grid`` that earns ``work`` (same shape) in each half-hour instead of the productivity."""
-    copy = object.__new__(DrinkingGrid)
-    copy.__dict__.update(grid.__dict__)
-    copy.work = np.asarray(work, dtype=np.float32)
-    return copy
 
 
 class DrinkingGrid:
@@ -873,9 +872,13 @@ class DrinkingGrid:
             np.broadcast_to(np.arange(self.awake)[None, :, None], shape),
         )
 
-    def action_values(self, value: np.ndarray, rate: float) -> np.ndarray:
-        """``(4, *shape)``: each action's value, given the next decision's ``value``."""
-        stay = self.work - np.float32(rate)  # the value after the action's effects
+    def action_values(self, value: np.ndarray, rate: float, work: np.ndarray | None = None) -> np.ndarray:
+        """``(4, *shape)``: each action's value, given the next decision's ``value``.
+
+        ``work``: what a half-hour earns at each grid point (default: its productivity; zeros and
+        ``rate=-1`` count the time instead).
+        """
+        stay = (self.work if work is None else work) - np.float32(rate)  # the value after the action's effects
         stay[:, :-1] += self._after_half_hour(value)
         stay[:, -1] = NEVER
         coffee = _window_mean(stay, 0, self.coffee)
