@@ -74,9 +74,11 @@ def policy(args: argparse.Namespace, grid: dict[str, float], label: str) -> None
         result = heartpole.evaluate(counted, episodes=args.episodes, seed=0, env_kwargs=KWARGS)
         half = (result.score_ci95[1] - result.score_ci95[0]) / 2
         mix = ", ".join(f"{n / args.episodes:.0f} {a.name}" for n, a in zip(counted.counts, dynamics.actions))
+        times = dynamics.params.max_steps + dynamics.params.sleep_half_hours * result.sleeps
+        ratio = float((result.scores * times).mean() / times.mean())
         print(
             f"rate {rate:.4f}, {args.sweeps} sweeps, {label} ({seconds:.0f} s): "
-            f"score {result.score:.4f} +- {half:.4f}; an episode: {mix}",
+            f"score {result.score:.4f} +- {half:.4f} (E[work] / E[time] {ratio:.5f}); an episode: {mix}",
             flush=True,
         )
         rate = result.score
