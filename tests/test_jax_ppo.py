@@ -63,6 +63,27 @@ def test_settings_from_the_default_preset_and_bad_configs() -> None:
         ppo.PPOSettings.from_config(training.preset_config("default", reward=auto))
 
 
+def test_the_jax_preset_and_an_annealed_learning_rate_as_sb3_schedules_it() -> None:
+    config = training.preset_config("default", backend="jax", timesteps=10_000)
+    assert config.hyperparameters == training.JAX_PPO_HYPERPARAMETERS
+    assert training.preset_config("default", backend="jax").timesteps == training.JAX_PPO_TIMESTEPS
+    assert training.preset_config("default", "a2c", backend="jax") == training.preset_config("default", "a2c")
+    with pytest.raises(ValueError, match="unknown backend"):
+        training.preset_config(backend="tpu")
+    annealed = {**config.hyperparameters, "anneal_learning_rate": True, "learning_rate": 1e-3}
+    config = replace(config, hyperparameters=annealed)
+    settings = ppo.PPOSettings.from_config(config)
+    model, venv = training.build_model(config)  # SB3 takes the same schedule
+    venv.close()
+    for update in range(settings.num_updates):
+        left = 1.0 - (update + 1) * settings.rollout / config.timesteps  # SB3's progress after the rollout
+        ours = float(ppo.learning_rate_at(settings, jnp.int32(update)))
+        assert ours == pytest.approx(model.lr_schedule(left), rel=1e-6, abs=1e-12)
+    assert float(ppo.learning_rate_at(settings, jnp.int32(settings.num_updates - 1))) == 0.0
+    constant = replace(settings, anneal_learning_rate=False)
+    assert ppo.learning_rate_at(constant, jnp.int32(5)) == settings.learning_rate
+
+
 @pytest.mark.slow  # compiles and trains two seeds, about 10 s
 def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> None:
     """Two seeds of a few thousand steps in one call: every file of the SB3 path, loadable, evaluable."""

@@ -294,3 +294,11 @@ def test_no_policy_reaches_issue_16s_drinking_score_on_the_grid() -> None:
     solution = solve_drinking(Params(heart_attack_proclivity=0.0), 1.1235, sweeps=1000)
     assert solution.start_value < -2.0  # the grid's error, checked against the env above, is well below this
     assert solution.rate_bound == 1.1235  # a negative start value: the rate itself is out of reach
+
+
+def test_within_widens_the_interval_by_the_grid_error(v0: OptimumSolution) -> None:
+    value, bound = v0.expected_return, v0.error_bound
+    assert v0.within((value - 0.01, value + 0.01))
+    assert v0.within((value + bound / 2, value + 1.0))  # just above the interval's low end, inside the bound
+    assert not v0.within((value + 2 * bound + 1e-9, value + 1.0))
+    assert not v0.within((value - 1.0, value - 2 * bound - 1e-9))

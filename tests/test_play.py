@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from heartpole.cli.play import _new_game, _prompt, action_keys, status_lines
+from heartpole.game import action_keys, new_game, prompt, status_lines
 
 pexpect = pytest.importorskip("pexpect")
 
@@ -128,12 +128,12 @@ def test_the_prompt_wraps_many_actions_to_80_columns() -> None:
 
     if "HeartPole-v1" not in gym.registry:
         pytest.skip("no HeartPole-v1 registered")
-    game = _new_game("HeartPole-v1", 5, 0)
-    prompt = _prompt(game)
-    assert all(len(line) <= 80 for line in prompt.splitlines()) and prompt.endswith("q=quit > ")
+    game = new_game("HeartPole-v1", 5, 0)
+    text = prompt(game)
+    assert all(len(line) <= 80 for line in text.splitlines()) and text.endswith("q=quit > ")
     for index, action in enumerate(game.env.unwrapped.actions):
         key = next(k for k, i in game.keys.items() if i == index and k.isalpha())
-        assert f"{key}={action.name.replace('_', ' ')}" in prompt
+        assert f"{key}={action.name.replace('_', ' ')}" in text
 
 
 def test_an_env_that_is_not_heartpole_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:

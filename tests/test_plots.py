@@ -204,3 +204,18 @@ def test_gymnasiums_record_video_works_with_the_plot_extra(tmp_path: Path) -> No
     env.close()
     videos = list(folder.glob("*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000
+
+
+def test_video_writers_are_checked_by_type(monkeypatch: pytest.MonkeyPatch) -> None:
+    import builtins
+
+    real_import = builtins.__import__
+
+    def without_pil(name: str, *args: object, **kwargs: object) -> object:
+        if name == "PIL":
+            raise ImportError("no PIL here")
+        return real_import(name, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(builtins, "__import__", without_pil)
+    with pytest.raises(ImportError, match=r"^\.gif videos need Pillow$"):
+        plots.require_video_writer(".gif")

@@ -228,9 +228,11 @@ def test_models_load_with_their_algorithm_and_act_deterministically(models: dict
     assert detect_algorithm(models[name]) == name
     policy = load_policy(str(models[name]))
     model = getattr(sb3, name.upper()).load(models[name])
-    obs = np.random.default_rng(0).normal(0, 3, (64, 6)).astype(np.float32)
+    obs = np.random.default_rng(0).normal(0, 3, (4096, 6)).astype(np.float32)
     expected, _ = model.predict(obs, deterministic=True)
     np.testing.assert_array_equal(policy(obs), expected)
+    # PPO and A2C take the argmax of the actor's logits without SB3's distribution, DQN goes through predict
+    assert (getattr(policy, "_greedy", None) is not None) == (name != "dqn")
 
 
 def test_vecnormalize_recorded_with_the_model_is_applied(models: dict[str, Path]) -> None:

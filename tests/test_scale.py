@@ -167,10 +167,11 @@ def test_train_ray_writes_what_the_sequential_path_writes_with_identical_results
         ray_run, plain_run = comparable(ray_out / f"seed_{seed}"), comparable(plain_out / f"seed_{seed}")
         ray_run["evaluation"]["policy"] = plain_run["evaluation"]["policy"]  # type: ignore[index]
         assert ray_run == plain_run
-    timing = ("train_seconds", "wall_seconds")
+    timing = ("train_seconds", "wall_seconds", "cpu_seconds")
     ray_summary = json.loads((ray_out / "summary.json").read_text())
     plain_summary = json.loads((plain_out / "summary.json").read_text())
     for summary in (ray_summary, plain_summary):
+        assert summary.pop("cpu_seconds") == pytest.approx(sum(run["cpu_seconds"] for run in summary["runs"]))
         summary["runs"] = [{k: v for k, v in run.items() if k not in timing} for run in summary["runs"]]
         summary["aggregate"].pop("wall_seconds")
     assert ray_summary == plain_summary
@@ -319,3 +320,26 @@ def test_rllib_example_env_is_made_inside_a_ray_worker(local_ray: None, rllib_ex
     assert result["steps"] == [(False, False), (False, False), (False, True)]
     if result["fresh"]:  # a worker that never imported heartpole does not know the plain id
         assert result["plain_id_works"] is False
+
+
+def test_a_search_folder_is_checked_before_any_trial(tmp_path: Path) -> None:
+    from heartpole import scale
+
+    assert scale.prepare_search_folder(tmp_path / "new") == (tmp_path / "new").resolve()
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match="is a file"):
+        scale.prepare_search_folder(tmp_path / "file")
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "keep.txt").write_text("x")
+    with pytest.raises(ValueError, match="not empty"):
+        scale.prepare_search_folder(other)
+    with pytest.raises(ValueError, match="holds no search"):
+        scale.prepare_search_folder(other, force=True)
+    with pytest.raises(ValueError, match="no search to continue"):
+        scale.prepare_search_folder(other, resume=True)
+    with pytest.raises(ValueError, match="give one"):
+        scale.prepare_search_folder(other, resume=True, force=True)
+    assert (other / "keep.txt").is_file()  # nothing but a search is ever removed
+    (other / scale.SEARCH_SETTINGS_FILE).write_text("{}")
+    assert scale.prepare_search_folder(other, force=True) == other.resolve() and not other.exists()

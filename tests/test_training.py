@@ -433,6 +433,9 @@ def test_train_seeds_writes_one_folder_per_seed_and_a_summary(tmp_path: Path) ->
     low, high = score["iqm_ci95"]
     assert score["min"] <= low <= score["iqm"] <= high <= score["max"]
     assert on_disk["solved_seeds"] == sum(run["solved"] for run in on_disk["runs"])
+    cpu = [run["cpu_seconds"] for run in on_disk["runs"]]
+    assert all(0 < seconds for seconds in cpu) and on_disk["cpu_seconds"] == pytest.approx(sum(cpu))
+    assert training.cpu_total([{"cpu_seconds": 1.0}, {"cpu_seconds": None}]) == {}  # not measured: no total
 
 
 # ------------------------------------------------------------------------------------------------------

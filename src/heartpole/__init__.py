@@ -1,11 +1,24 @@
 """HeartPole: a reinforcement-learning environment for healthcare-style decisions, "CartPole for health".
 
-``import heartpole`` registers ``HeartPole-v0`` with Gymnasium::
+``import heartpole`` registers ``HeartPole-v0`` (and ``HeartPole-v1``) with Gymnasium:
 
-    import gymnasium as gym
-    import heartpole  # noqa: F401
+>>> import gymnasium as gym
+>>> import heartpole
+>>> env = gym.make("HeartPole-v0")
+>>> env.action_space
+Discrete(4)
+>>> obs, info = env.reset(seed=0)
+>>> obs.shape, env.observation_space.contains(obs)
+((6,), True)
+>>> obs, reward, terminated, truncated, info = env.step(1)
+>>> info["action"], terminated
+('drink_coffee', False)
 
-    env = gym.make("HeartPole-v0")
+Policies are judged over many episodes, with 95% intervals:
+
+>>> result = heartpole.evaluate("expert", episodes=20, seed=0, regret=False)
+>>> result.episodes, result.ci95[0] <= result.mean_return <= result.ci95[1]
+(20, True)
 """
 
 from heartpole.actions import V0_ACTIONS, Action

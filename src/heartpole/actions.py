@@ -36,6 +36,14 @@ class Action:
             (fact 1: fresh alertness, ``time_since_slept`` reset), after any rest.
         fact: the one-line fact behind the action, for the manual.
         source: where the fact comes from.
+
+    >>> tea = Action("drink_tea", effects={"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)})
+    >>> tea.is_drink, tea.effects["alertness"]
+    (True, (0.0, 0.5))
+    >>> Action("drink_tea", effects={"alertness": (0.5, 0.0)})
+    Traceback (most recent call last):
+    ...
+    ValueError: Action 'drink_tea': effect on 'alertness' must be finite numbers with low <= high, got (0.5, 0.0)
     """
 
     name: str
@@ -59,7 +67,7 @@ class Action:
         return any(name in ("hypertension", "intoxication") and high > 0 for name, (_, high) in self.effects.items())
 
 
-def _frozen_effects(action: str, effects: Any) -> Mapping[str, tuple[float, float]]:
+def _frozen_effects(action: str, effects: object) -> Mapping[str, tuple[float, float]]:
     if not isinstance(effects, Mapping):
         raise ValueError(
             f"Action {action!r}: effects must be a mapping {{variable: (low, high)}}, got {type(effects).__name__}"
@@ -86,7 +94,7 @@ def _frozen_effects(action: str, effects: Any) -> Mapping[str, tuple[float, floa
 class _ReadOnlyDict(dict):  # type: ignore[type-arg]
     """A dict that cannot change after construction, so a frozen Action stays frozen and hashable."""
 
-    def _refuse(self, *args: Any, **kwargs: Any) -> None:
+    def _refuse(self, *args: object, **kwargs: object) -> None:
         raise TypeError("an Action's effects cannot be changed; build a new Action instead")
 
     __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse  # type: ignore[assignment]
@@ -100,7 +108,7 @@ class _ReadOnlyDict(dict):  # type: ignore[type-arg]
     def __copy__(self) -> _ReadOnlyDict:
         return self
 
-    def __deepcopy__(self, memo: dict[int, Any]) -> _ReadOnlyDict:
+    def __deepcopy__(self, memo: dict[int, object]) -> _ReadOnlyDict:
         return self
 
 

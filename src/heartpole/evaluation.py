@@ -331,6 +331,12 @@ def evaluate(
     Raises:
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
         FileNotFoundError: a model path that does not exist.
+
+    >>> result = evaluate("expert", "HeartPole-v0", episodes=20, seed=0, env_kwargs={"max_steps": 100})
+    >>> result.policy, result.episodes, result.max_steps
+    ('expert', 20, 100)
+    >>> result.expected_ci95[0] <= result.expected_return <= result.expected_ci95[1]
+    True
     """
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
@@ -387,6 +393,10 @@ def compare(
     """Evaluate two policies with common random numbers and pair their episodes: ``a - b``.
 
     Arguments are :func:`evaluate`'s; both policies see the same seed and chunking.
+
+    >>> pair = compare("expert", "nothing", episodes=20, env_kwargs={"max_steps": 100})
+    >>> pair.a.policy, pair.b.policy, pair.expected_difference == pair.a.expected_return - pair.b.expected_return
+    ('expert', 'nothing', True)
     """
     options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     a = evaluate(policy_a, env_id, episodes, seed, **options)
@@ -541,7 +551,7 @@ def plus_minus(value: float, interval: tuple[float, float]) -> str:
     return f"{value:.{decimals}f} +- {half:.{decimals}f}"
 
 
-def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[Any]]]:
+def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[object]]]:
     """Headers and rows of the results table (best expected-risk return first), values as text."""
     headers = [
         "rank",
@@ -571,9 +581,11 @@ def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[lis
     return headers, rows
 
 
-def published_rows(sd: float = 110.0) -> tuple[list[str], list[list[Any]]]:
+def published_rows(sd: float = 110.0) -> tuple[list[str], list[list[object]]]:
     """Headers and rows of the published Table 1, with the 95% half-width its 20 episodes allow."""
     half = t_quantile_975(PUBLISHED_EPISODES - 1) * sd / math.sqrt(PUBLISHED_EPISODES)
     headers = ["algorithm", "model", f"mean return ({PUBLISHED_EPISODES} episodes)", "95% CI at sd 110"]
-    rows = [[algo, model, f"{value:.2f}", f"+-{half:.0f}"] for algo, model, value in PUBLISHED_TABLE1]
+    rows: list[list[object]] = [
+        [algo, model, f"{value:.2f}", f"+-{half:.0f}"] for algo, model, value in PUBLISHED_TABLE1
+    ]
     return headers, rows

@@ -24,9 +24,11 @@ from typing import Any, Literal, TypedDict
 import numba
 import numpy as np
 from numba import njit
+from numba.core import cgutils
 from numba.core import types as nbtypes
 from numba.cpython.unsafe.tuple import tuple_setitem as _tuple_setitem
 from numba.extending import intrinsic
+from numba.np.numpy_support import carray as _carray
 from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import model
@@ -37,6 +39,8 @@ from heartpole import model
 # outside compiled code; this module calls the intrinsics from compiled code, so it holds them as ``Any``.
 tuple_setitem: Any = _tuple_setitem
 to_fixed_tuple: Any = _to_fixed_tuple
+carray: Any = _carray
+alloca_once: Any = cgutils.alloca_once
 
 
 class JitOptions(TypedDict):
@@ -45,6 +49,7 @@ class JitOptions(TypedDict):
     cache: bool
     error_model: Literal["python", "numpy"]
     nogil: bool
+    fastmath: set[str]
 
 
 class InlineOptions(TypedDict):
@@ -53,9 +58,12 @@ class InlineOptions(TypedDict):
     inline: Literal["never", "always"]
 
 
-JIT: JitOptions = {"cache": True, "error_model": "numpy", "nogil": True}
+JIT: JitOptions = {"cache": True, "error_model": "numpy", "nogil": True, "fastmath": {"contract", "arcp"}}
 """numba options for everything here: cached on disk; division follows NumPy (no ZeroDivisionError
-checks, which stop LLVM from vectorising); the GIL is released."""
+checks, which stop LLVM from vectorising); the GIL is released. Two of LLVM's fast-math liberties, no
+others: ``contract`` fuses a multiply and an add into one instruction (rounded once), ``arcp`` divides by
+a constant as a multiplication by its reciprocal; infinities, NaNs and the order of operations stay
+IEEE's. They took the v0 loop from 131 to 109 us at 16,384 envs."""
 
 INLINE: InlineOptions = {"inline": "always"}
 """numba compiles each function on its own and calls it through its own calling convention, which LLVM
@@ -110,11 +118,12 @@ def where(condition: Any, a: Any, b: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def stored(x: Any) -> Any:
-    """``x`` as the state keeps it: a subnormal float32 (below ~1.2e-38) becomes 0. Fading values (blood
-    pressure, alcohol, THC) would otherwise stick at a subnormal for ever (times 0.97 rounds back to itself)
-    and make every later step several times slower; CPUs compute subnormals in microcode."""
-    return where(abs(x) < SMALLEST_NORMAL, F32(0.0), x)
+def stored(variable: Any, x: Any) -> Any:
+    """``x`` as the state keeps it for ``variable``: a subnormal float32 (below ~1.2e-38) becomes 0. Fading
+    values (blood pressure, alcohol, THC) would otherwise stick at a subnormal for ever (times 0.97 rounds
+    back to itself) and make every later step several times slower; CPUs compute subnormals in microcode.
+    The variables the step keeps itself (time and work) never fade and are kept as they are."""
+    return x if _kept_by_the_step(variable) else where(abs(x) < SMALLEST_NORMAL, F32(0.0), x)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -208,8 +217,19 @@ SCALARS = ("heart_attack_proclivity", "heart_attack_penalty", "wake_low", "wake_
 ACTION_DTYPE = np.int32
 """The dtype of :func:`step_envs`'s actions: with 32-bit integers in the loop, LLVM vectorises it eight
 floats wide, with 64-bit ones four wide."""
-OUTPUTS = ("reward", "productivity", "heart_attack_risk", "heart_attack", "score")
-"""The rows after the state in :func:`step_envs`'s ``envs`` array (``heart_attack`` as 1.0 or 0.0)."""
+OUTPUTS = {
+    "reward": np.float32,
+    "productivity": np.float32,
+    "heart_attack_risk": np.float32,
+    "heart_attack": np.bool_,
+    "score": np.float32,
+}
+"""The results of a step, in :func:`step_envs`'s order, with their dtypes."""
+
+
+def new_results(count: int) -> tuple[np.ndarray, ...]:
+    """Fresh arrays for :func:`step_envs`'s results of ``count`` envs (:data:`OUTPUTS`)."""
+    return tuple(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values())
 
 
 def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
@@ -226,32 +246,31 @@ def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np
 
 def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple[tuple[None, ...], ...]:
     """The ``layout`` argument of the kernels: tuples of ``None`` whose lengths are the numbers of
-    variables, rest offsets and per-action values. Compiled code is specialised on them, so its loops over
-    variables and actions have known lengths (LLVM unrolls them); ``None`` costs nothing to pass."""
-    per_action = num_actions * (3 * num_variables + 4)
-    return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * per_action)
+    variables, rest offsets and actions. Compiled code is specialised on them, so its loops over variables
+    and actions have known lengths (LLVM unrolls them); ``None`` costs nothing to pass."""
+    return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * num_actions)
 
 
 @njit(**JIT, **INLINE)
 def _take(values: Any, start: Any, zeros: Any) -> Any:
-    """``len(zeros)`` items of ``values`` (an array or a tuple) from ``start`` on, as a tuple."""
+    """``len(zeros)`` items of ``values`` (an array or a tuple) from ``start`` (unsigned) on, as a tuple."""
     taken = zeros
     for v in range(len(zeros)):
-        taken = tuple_setitem(taken, v, values[start + v])
+        taken = tuple_setitem(taken, v, values[start + U64(v)])
     return taken
 
 
 @njit(**JIT, **INLINE)
 def action_effects(row: Any, start: Any, zeros: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` packed in ``row`` (an array or tuple) from ``start``."""
-    n = len(zeros)
+    """The :class:`heartpole.model.ActionEffects` packed in ``row`` (an array) from ``start`` (unsigned)."""
+    n = U64(len(zeros))
     return model.ActionEffects(
         _take(row, start, zeros),
         _take(row, start + n, zeros),
-        _take(row, start + 2 * n, zeros),
-        row[start + 3 * n],
-        row[start + 3 * n + 1],
-        row[start + 3 * n + 2],
+        _take(row, start + U64(2) * n, zeros),
+        row[start + U64(3) * n],
+        row[start + U64(3) * n + U64(1)],
+        row[start + U64(3) * n + U64(2)],
     )
 
 
@@ -265,84 +284,149 @@ def _fixed(values: Any, like: Any) -> Any:
 @njit(**JIT, **INLINE)
 def _tables(packed: Any, zeros: Any, rest_offsets: Any) -> Any:
     """The :class:`heartpole.model.StepTables` in :func:`pack`'s last row."""
-    n, last = len(zeros), packed[packed.shape[0] - 1]
+    n, last = U64(len(zeros)), packed[packed.shape[0] - 1]
     return model.StepTables(
-        _take(last, 0, zeros),
+        _take(last, U64(0), zeros),
         _take(last, n, zeros),
-        _take(last, 2 * n, zeros),
+        _take(last, U64(2) * n, zeros),
         rest_offsets,
-        last[3 * n],
-        last[3 * n + 1],
-        last[3 * n + 2],
-        last[3 * n + 3],
+        last[U64(3) * n],
+        last[U64(3) * n + U64(1)],
+        last[U64(3) * n + U64(2)],
+        last[U64(3) * n + U64(3)],
     )
 
 
 @njit(**JIT, **INLINE)
 def _unpack(packed: Any, layout: Any) -> Any:
-    """``(zeros, tables, by_action)`` from :func:`pack`'s array: a state of zeros, the
-    :class:`heartpole.model.StepTables`, and the per-action columns as one flat tuple, column by column
-    (item ``c * num_actions + a`` is column ``c`` of action ``a``)."""
+    """``(zeros, tables)`` from :func:`pack`'s array: a state of zeros and the
+    :class:`heartpole.model.StepTables`."""
     zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
-    tables = _tables(packed, zeros, _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1]))
-    by_action = _fixed(packed[: packed.shape[0] - 1].T.copy().ravel(), layout[2])  # column by column
-    return zeros, tables, by_action
+    return zeros, _tables(packed, zeros, _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1]))
+
+
+STACK_TABLE_LIMIT = 4096
+"""Action tables of up to this many numbers (16 kB; HeartPole-v1's has 200) go on the stack."""
+
+
+@intrinsic
+def _stack_floats_intrinsic(typingctx: Any, actions: Any, zeros: Any) -> Any:
+    """A pointer to an action table's float32 (:func:`_action_table`) on the stack of the compiled function
+    that calls it: ``len(actions)`` rows of ``3 * len(zeros) + 4``."""
+    count = len(actions) * (3 * len(zeros) + 4)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return alloca_once(builder, context.get_value_type(nbtypes.float32), size=count)
+
+    pointer: Any = nbtypes.CPointer
+    return pointer(nbtypes.float32)(actions, zeros), codegen
+
+
+_stack_floats: Any = _stack_floats_intrinsic
 
 
 @njit(**JIT, **INLINE)
-def _chosen(by_action: Any, start: Any, num_actions: Any, action: Any) -> Any:
-    """``by_action[start + action]``, selected with masks (a gather would stop LLVM's vectoriser)."""
-    value = by_action[start]
-    for k in range(1, num_actions):
-        value = where(action == k, by_action[start + k], value)
+def _action_table(packed: Any, layout: Any, zeros: Any) -> Any:
+    """:func:`pack`'s action rows, one after the other, copied to a flat array on the caller's stack.
+
+    The loop over envs reads each env's action effects from it. LLVM vectorises those reads only from
+    memory it knows no written array overlaps, which the caller's stack is, and ``packed`` is not. A table
+    too large for the stack (:data:`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
+    """
+    width = 3 * len(zeros) + 4
+    if len(layout[2]) * width <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
+        table = carray(_stack_floats(layout[2], zeros), len(layout[2]) * width)
+    else:
+        table = np.empty(len(layout[2]) * width, dtype=np.float32)
+    for a in range(len(layout[2])):
+        for c in range(width):
+            table[a * width + c] = packed[a, c]
+    return table
+
+
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    _action_table = lambda packed, layout, zeros: np.ascontiguousarray(packed[:-1]).ravel()  # type: ignore[assignment]  # noqa: E731
+
+
+VECTOR_WIDTH = 512
+"""The vector width, in bits, LLVM may use for the loop over envs (``prefer-vector-width``). On CPUs with
+AVX-512 LLVM otherwise keeps to 256 bits; 512 made the v0 loop about a quarter faster on our Xeon. CPUs
+without AVX-512 ignore it. It is an attribute of the loop's own function, not a process-wide option."""
+
+
+@intrinsic
+def _wide_vectors_intrinsic(typingctx: Any) -> Any:
+    """Let LLVM vectorise the calling function :data:`VECTOR_WIDTH` bits wide (no code of its own)."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        # llvmlite knows only LLVM's keyword attributes; a string attribute goes into the set as written
+        set.add(builder.function.attributes, f'"prefer-vector-width"="{VECTOR_WIDTH}"')
+        return context.get_dummy_value()
+
+    return nbtypes.none(), codegen
+
+
+_wide_vectors: Any = _wide_vectors_intrinsic
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    _wide_vectors = lambda: None  # noqa: E731
+
+
+@njit(**JIT, **INLINE)
+def _chosen(table: Any, column: Any, layout: Any, zeros: Any, action: Any) -> Any:
+    """The ``column`` of ``action``'s row of the action table, selected with masks (no gather)."""
+    width = 3 * len(zeros) + 4
+    value = table[U64(column)]
+    for k in range(1, len(layout[2])):
+        value = where(action == k, table[U64(k * width + column)], value)
     return value
 
 
 @njit(**JIT, **INLINE)
-def _chosen_tuple(by_action: Any, start: Any, num_actions: Any, action: Any, zeros: Any) -> Any:
+def _chosen_tuple(table: Any, start: Any, layout: Any, zeros: Any, action: Any) -> Any:
     values = zeros
     for v in range(len(zeros)):
-        values = tuple_setitem(values, v, _chosen(by_action, start + v * num_actions, num_actions, action))
+        values = tuple_setitem(values, v, _chosen(table, start + v, layout, zeros, action))
     return values
 
 
 @njit(**JIT, **INLINE)
-def chosen_effects(by_action: Any, action: Any, zeros: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` of ``action`` from :func:`_unpack`'s ``by_action``."""
+def chosen_effects(table: Any, layout: Any, zeros: Any, action: Any) -> Any:
+    """The :class:`heartpole.model.ActionEffects` of ``action`` from the action table, selected with masks."""
     n = len(zeros)
-    a = len(by_action) // (3 * n + 4)
     return model.ActionEffects(
-        _chosen_tuple(by_action, 0, a, action, zeros),
-        _chosen_tuple(by_action, n * a, a, action, zeros),
-        _chosen_tuple(by_action, 2 * n * a, a, action, zeros),
-        _chosen(by_action, 3 * n * a, a, action),
-        _chosen(by_action, (3 * n + 1) * a, a, action),
-        _chosen(by_action, (3 * n + 2) * a, a, action),
+        _chosen_tuple(table, 0, layout, zeros, action),
+        _chosen_tuple(table, n, layout, zeros, action),
+        _chosen_tuple(table, 2 * n, layout, zeros, action),
+        _chosen(table, 3 * n, layout, zeros, action),
+        _chosen(table, 3 * n + 1, layout, zeros, action),
+        _chosen(table, 3 * n + 2, layout, zeros, action),
     )
 
 
 SELECTED_ACTIONS = 4
-"""Up to this many actions the loop over envs selects each env's action effects with masks and LLVM
-vectorises it (v0); with more, the masks outgrow the registers and the vectoriser gives up, and looking the
-effects up is faster: HeartPole-v1 (8 actions) at 16,384 envs took 1,804 us a step looked up, about three
-times less than with masks; v0 213 us."""
+"""Up to this many actions, the loop over envs selects each env's action effects with masks; with more, it
+reads them from the action table with gathers (the masks grow with the actions, and outgrow the registers).
+At 16,384 envs on our Xeon: v0 about 78 us a step with masks, 86 us with gathers; v1 (8 actions) 125 us
+with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
 
 
 # ---------------------------------------------------------------------------------------------------------
 # The loops over envs. Array indices are unsigned: numba then skips its negative-index wraparound, which
 # hides the addresses from LLVM's vectoriser.
 @njit(**JIT)
-def step_envs(envs: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
-    """Step every env ``i`` with ``actions[i]``, in place.
+def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
+    ``results[k][i]``, a tuple of arrays in :data:`OUTPUTS` order (:func:`new_results`).
 
-    ``envs[:n, i]`` is env ``i``'s state (``n`` variables); the step's results go to the rows after it,
-    in :data:`OUTPUTS` order (one array for both keeps LLVM's aliasing checks few enough to vectorise).
+    The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
     ``packed`` and ``layout`` are :func:`pack`'s and :func:`layout`'s.
     """
-    zeros, t, by_action = _unpack(packed, layout)
+    _wide_vectors()
+    zeros, t = _unpack(packed, layout)
     n = len(zeros)
-    selected = len(by_action) <= SELECTED_ACTIONS * (3 * n + 4)  # known when compiling: one branch stays
+    table, width = _action_table(packed, layout, zeros), U64(3 * n + 4)
+    selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
         s = zeros
@@ -350,51 +434,36 @@ def step_envs(envs: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> No
             s = tuple_setitem(s, v, envs[U64(v), i])
         u = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
         if selected:
-            effects = chosen_effects(by_action, actions[i], zeros)
+            effects = chosen_effects(table, layout, zeros, actions[i])
         else:
-            effects = _looked_up_effects(packed, U64(actions[i]), zeros)
+            effects = action_effects(table, U64(actions[i]) * width, zeros)
         s, reward, worked, risk, attack, new_score = _step(s, effects, u, t)
         for v in range(n):
-            envs[U64(v), i] = stored(s[v])
+            envs[U64(v), i] = stored(v, s[v])
         rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
-        envs[U64(n), i] = reward
-        envs[U64(n + 1), i] = worked
-        envs[U64(n + 2), i] = risk
-        envs[U64(n + 3), i] = F32(1.0) if attack else F32(0.0)
-        envs[U64(n + 4), i] = new_score
-
-
-@njit(**JIT, **INLINE)
-def _looked_up_effects(packed: Any, action: Any, zeros: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` of ``action``, read from its row of ``packed``."""
-    n = len(zeros)
-    low, width, fade = zeros, zeros, zeros
-    for v in range(n):
-        low = tuple_setitem(low, v, packed[action, U64(v)])
-        width = tuple_setitem(width, v, packed[action, U64(n + v)])
-        fade = tuple_setitem(fade, v, packed[action, U64(2 * n + v)])
-    row = U64(3 * n)
-    return model.ActionEffects(
-        low, width, fade, packed[action, row], packed[action, row + U64(1)], packed[action, row + U64(2)]
-    )
+        results[0][i] = reward
+        results[1][i] = worked
+        results[2][i] = risk
+        results[3][i] = attack
+        results[4][i] = new_score
 
 
 @njit(**JIT)
 def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
     """Step one env (the single env's path): its ``state`` (a float32 array) in place, with ``action``.
 
-    The same step and the same draws as an env of :func:`step_envs`, without the loop: the action's
-    effects are looked up, not selected, and ``layout`` needs only its first two tuples. Returns
+    The same step and the same draws as an env of :func:`step_envs`, without the loop (``layout`` needs
+    only its first two tuples). Returns
     ``(reward, productivity, heart_attack_risk, heart_attack, score)``.
     """
     zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
     rest_offsets = _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1])
     t = _tables(packed, zeros, rest_offsets)
-    s = _take(state, 0, zeros)
+    s = _take(state, U64(0), zeros)
     u = draws(rng[KEY_LOW], rng[KEY_HIGH], rng[COUNTER], zeros)
-    s, reward, worked, risk, attack, new_score = _step(s, action_effects(packed[action], 0, zeros), u, t)
+    s, reward, worked, risk, attack, new_score = _step(s, action_effects(packed[action], U64(0), zeros), u, t)
     for v in range(len(zeros)):
-        state[v] = stored(s[v])
+        state[v] = stored(v, s[v])
     rng[COUNTER] = add32(rng[COUNTER], U32(1))
     return reward, worked, risk, attack, new_score
 
@@ -402,7 +471,7 @@ def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any
 @njit(**JIT)
 def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> None:
     """Start env ``i`` afresh wherever ``which[i]``: every variable 0, then waking up with one draw."""
-    zeros, t, _ = _unpack(packed, layout)
+    zeros, t = _unpack(packed, layout)
     wake = len(zeros)  # the wake-up uniform of a draw, as in a step
     for i in range(which.shape[0]):
         if which[i]:

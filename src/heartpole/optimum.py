@@ -130,6 +130,12 @@ class OptimumSolution:
         threshold = self.thresholds[np.broadcast_to(n, t.shape), np.minimum(t, self.max_awake - 1)]
         return ~inside | (np.asarray(alertness, dtype=np.float64) < threshold)
 
+    def within(self, interval: tuple[float, float]) -> bool:
+        """Whether :attr:`expected_return` lies in ``interval`` (an evaluator's 95% interval, say) widened by
+        the grid's :attr:`error_bound` on both sides."""
+        low, high = interval
+        return bool(low - self.error_bound <= self.expected_return <= high + self.error_bound)
+
     def summary(self) -> dict[str, Any]:
         """JSON-safe figures of the solution (no arrays)."""
         return {
@@ -256,7 +262,7 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
 
 
 def optimum_for(
-    dynamics: Any, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
+    dynamics: Dynamics, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
 ) -> OptimumSolution:
     """:func:`optimum` for a :class:`~heartpole.dynamics.Dynamics` (``env_id`` and ``env_kwargs`` label it)."""
     _check_covered(env_id, dynamics)
@@ -1017,7 +1023,7 @@ def _params_dict(params: Params) -> dict[str, Any]:
     return out
 
 
-def _json_default(value: Any) -> Any:
+def _json_default(value: object) -> float | int | list[object]:
     if isinstance(value, (np.integer, np.floating)):
         return value.item()
     if isinstance(value, tuple):

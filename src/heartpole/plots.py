@@ -31,8 +31,6 @@ if TYPE_CHECKING:
 
     from heartpole.env import HeartPole
 
-"""A policy: an observation batch ``(n, obs_dim)`` float32 in, ``n`` integer actions out."""
-
 DPI = 100
 ACTION_COLORS = {
     "do_nothing": "#7f8c8d",
@@ -53,6 +51,20 @@ def require_matplotlib() -> None:
         import matplotlib  # noqa: F401
     except ImportError as error:
         raise ImportError('plots need matplotlib: pip install "heartpole[plot]"') from error
+
+
+def require_video_writer(suffix: str) -> None:
+    """Raise ``ImportError`` naming what is missing if videos of type ``suffix`` cannot be written: ``.mp4``
+    needs imageio and imageio-ffmpeg, ``.gif`` Pillow."""
+    try:
+        if suffix == ".mp4":
+            import imageio  # noqa: F401
+            import imageio_ffmpeg  # noqa: F401
+        else:
+            import PIL  # noqa: F401
+    except ImportError as error:
+        needed = "imageio and imageio-ffmpeg" if suffix == ".mp4" else "Pillow"
+        raise ImportError(f"{suffix} videos need {needed}") from error
 
 
 def _figure(width: float, height: float) -> Figure:

@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from heartpole.actions import TAKE_NAP
 from heartpole.dynamics import Dynamics
@@ -88,7 +89,7 @@ CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 attacks and score of the episodes finished since the last one."""
 
 
-def _observations(obs: Any) -> np.ndarray:
+def _observations(obs: npt.ArrayLike) -> np.ndarray:
     array = np.asarray(obs)
     if array.ndim != 2:
         raise ValueError(f"a policy takes a batch of observations of shape (n, obs_dim), got shape {array.shape}")
@@ -348,7 +349,7 @@ class OptimalPolicy:
         return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
 
 
-def policy_name(policy: Any) -> str:
+def policy_name(policy: object) -> str:
     """A display name: the policy's ``name`` attribute, its ``__name__``, or its class name."""
     for attribute in ("name", "__name__"):
         value = getattr(policy, attribute, None)
@@ -423,6 +424,13 @@ def load_policy(
     Raises:
         ValueError: unknown name, or a file that is not a usable model for this env.
         FileNotFoundError: a path that does not exist.
+
+    A policy maps a batch of observations to a batch of action indices:
+
+    >>> import numpy as np
+    >>> policy = load_policy("coffee")
+    >>> policy(np.zeros((3, 6), dtype=np.float32))
+    array([1, 1, 1])
     """
     dynamics = env_dynamics(env_id, env_kwargs)
     if spec in BUILTIN_POLICIES:

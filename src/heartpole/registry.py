@@ -175,6 +175,16 @@ def register_variant(
         ValueError: a malformed or taken id; an action or variable of the wrong type, shape or value, or
             with a missing or unknown field; duplicate names; an effect on a variable the variant lacks or
             that the step keeps itself; an unknown parameter or one out of range.
+
+    >>> import gymnasium as gym
+    >>> import heartpole
+    >>> tea = heartpole.Action("drink_tea", effects={"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)})
+    >>> spec = register_variant("TeaPole-v0", [*heartpole.V0_ACTIONS, tea], max_steps=200, replace=True)
+    >>> spec.max_episode_steps
+    200
+    >>> env = gym.make("TeaPole-v0")
+    >>> env.action_space, env.unwrapped.actions[4].name
+    (Discrete(5), 'drink_tea')
     """
     _check_id(id, replace)
     try:
@@ -211,7 +221,7 @@ def register_variant(
 # checks
 
 
-def _check_id(env_id: Any, replace: bool) -> None:
+def _check_id(env_id: object, replace: bool) -> None:
     if not isinstance(env_id, str) or not _ID.fullmatch(env_id):
         raise ValueError(
             f"a HeartPole variant id must look like 'Name-vN' or 'namespace/Name-vN' (a name starting with a "
@@ -236,7 +246,7 @@ def _check_id(env_id: Any, replace: bool) -> None:
         )
 
 
-def _actions(actions: Any) -> tuple[Action, ...]:
+def _actions(actions: object) -> tuple[Action, ...]:
     if actions is None:
         return V0_ACTIONS
     if isinstance(actions, (str, bytes, Mapping, Action)) or not isinstance(actions, Sequence):
@@ -254,7 +264,7 @@ def _actions(actions: Any) -> tuple[Action, ...]:
     return action_set
 
 
-def _variables(variables: Any) -> tuple[Variable, ...]:
+def _variables(variables: object) -> tuple[Variable, ...]:
     if variables is None:
         return V0_VARIABLES
     if isinstance(variables, (str, bytes, Mapping, Variable)) or not isinstance(variables, Sequence):
@@ -278,7 +288,7 @@ def _variables(variables: Any) -> tuple[Variable, ...]:
     return variable_set
 
 
-def _variable(definition: Any, position: int) -> Variable:
+def _variable(definition: object, position: int) -> Variable:
     where = f"variable #{position}"
     if isinstance(definition, Mapping):
         unknown = [key for key in definition if key not in VARIABLE_FIELDS]

@@ -340,7 +340,11 @@ def _mark(image: np.ndarray, index: int, fraction: float, text: str) -> None:
 # --------------------------------------------------------------------------------------------------------
 # The dynamic part.
 def clock(time_elapsed: float) -> tuple[int, int, int]:
-    """``(day, hour, minute)`` after ``time_elapsed`` half-hours, the episode starting at 09:00 on day 1."""
+    """``(day, hour, minute)`` after ``time_elapsed`` half-hours, the episode starting at 09:00 on day 1.
+
+    >>> clock(0), clock(1), clock(31)
+    ((1, 9, 0), (1, 9, 30), (2, 0, 30))
+    """
     minutes = EPISODE_START_MINUTES + 30 * int(round(time_elapsed))
     day, minute_of_day = divmod(minutes, 24 * 60)
     return day + 1, minute_of_day // 60, minute_of_day % 60

@@ -27,6 +27,7 @@ import logging
 import math
 import os
 import re
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -57,6 +58,8 @@ PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
 TUNE_SUMMARY_FILE = "tune_summary.json"
 SEARCHABLE = ("ppo", "a2c")
+TIMINGS = ("wall_seconds", "cpu_seconds")
+"""A trial's timings, summed over its seeds: the wall time of its runs and their CPU time."""
 """Algorithms with a default search space (DQN has neither ``n_steps`` nor ``ent_coef``)."""
 
 
@@ -191,7 +194,7 @@ class _Bar(tune.Callback):
         self.bar.close()
 
 
-def _failure(result: Any, label: str) -> TrialFailure:
+def _failure(result: tune.Result, label: str) -> TrialFailure:
     """The one-line failure of a Tune ``Result`` whose trial raised."""
     error = result.error
     cause = getattr(error, "cause", None) or error
@@ -199,15 +202,17 @@ def _failure(result: Any, label: str) -> TrialFailure:
     return TrialFailure(label, text if len(text) <= 300 else text[:297] + "...")
 
 
-def _fit(tuner: Any, bar: _Bar) -> Any:
+def _fit(tuner: tune.Tuner, bar: _Bar) -> list[tune.Result]:
+    """Run ``tuner``; its results in Tune's order (a ``ResultGrid`` is indexed, its stubs declare no iterator)."""
     with _quiet_tune():
         try:
-            return tuner.fit()
+            grid = tuner.fit()
         finally:
             bar.close()
+    return [grid[index] for index in range(len(grid))]
 
 
-def _run_config(storage: Path, name: str, bar: _Bar) -> Any:
+def _run_config(storage: Path, name: str, bar: _Bar) -> tune.RunConfig:
     return tune.RunConfig(
         storage_path=str(storage),
         name=name,
@@ -310,11 +315,11 @@ def train_seeds_ray(
         for result in grid:
             if result.error is None and "expected_return" not in (result.metrics or {}):
                 raise KeyboardInterrupt  # Tune stopped the trial before it finished: Ctrl-C
-            seed = int(result.config["seed"])
+            seed = int((result.config or {})["seed"])
             if result.error is not None:
                 failures.append(_failure(result, f"seed {seed}"))
             else:
-                runs[seed] = _run_of(result.metrics)
+                runs[seed] = _run_of(result.metrics or {})
     if not runs:
         raise AllTrialsFailedError(failures)
     summary = training.seeds_summary(
@@ -398,6 +403,7 @@ def _search_trial(
             "mean_return": aggregate["mean_return"]["iqm"],
             "solved_seeds": summary["solved_seeds"],
             "wall_seconds": sum(run["wall_seconds"] for run in summary["runs"]),
+            **training.cpu_total(summary["runs"]),
         }
     )
 
@@ -437,6 +443,35 @@ def can_resume(folder: str | os.PathLike[str]) -> bool:
     """Whether ``folder`` holds a search that :func:`tune_search` can resume."""
     folder = Path(folder).resolve()
     return (folder / SEARCH_SETTINGS_FILE).is_file() and tune.Tuner.can_restore(str(folder / SEARCH_NAME))
+
+
+def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, force: bool = False) -> Path:
+    """Check, before any trial runs, that a search may run in ``folder``; return it as an absolute ``Path``.
+
+    With ``resume`` it must hold a search to continue. Otherwise it must be missing or empty, or, with
+    ``force``, hold an earlier search (its :data:`SEARCH_SETTINGS_FILE`), which is then removed: ``force``
+    never removes anything else.
+
+    Raises:
+        ValueError: ``resume`` with ``force``, nothing to resume, a file in the way, a non-empty folder
+            without ``force``, or with ``force`` a folder that holds no search.
+    """
+    out = Path(folder).resolve()
+    if resume:
+        if force:
+            raise ValueError("--resume continues the search in --out and --force replaces it: give one")
+        if not can_resume(out):
+            raise ValueError(f"--resume: no search to continue in {out}")
+        return out
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()):
+        if not force:
+            raise ValueError(f"--out {out} is not empty; pass --resume to continue its search or --force to replace")
+        if not (out / SEARCH_SETTINGS_FILE).is_file():
+            raise ValueError(f"--out {out} holds no search ({SEARCH_SETTINGS_FILE}); refusing to replace it")
+        shutil.rmtree(out)
+    return out
 
 
 def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:
@@ -520,29 +555,29 @@ def tune_search(
     return _write_search_results(settings, grid, folder)
 
 
-def _trial_tag(result: Any) -> tuple[int, str]:
+def _trial_tag(result: tune.Result) -> tuple[int, str]:
     """A search trial's number (1, 2, ... in the order Optuna proposed them) and Tune's id for it, both
     in the name of the trial's folder: ``_search_trial_<id>_<number>_<parameters>_<date>``."""
     name = Path(result.path).name
-    trial_id = str(result.metrics.get("trial_id") or name.removeprefix("_search_trial_").split("_")[0])
+    trial_id = str((result.metrics or {}).get("trial_id") or name.removeprefix("_search_trial_").split("_")[0])
     match = re.search(rf"_{re.escape(trial_id)}_([0-9]+)(_|$)", name)
     if match is None:
         raise ValueError(f"cannot tell the trial number of {result.path}")
     return int(match.group(1)), trial_id
 
 
-def _write_search_results(settings: SearchSettings, grid: Any, folder: Path) -> dict[str, Any]:
+def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result], folder: Path) -> dict[str, Any]:
     trials, failures = [], []
     for result in grid:
         number, trial_id = _trial_tag(result)
-        row: dict[str, Any] = {"trial": number, "trial_id": trial_id, **dict(result.config)}
+        row: dict[str, Any] = {"trial": number, "trial_id": trial_id, **dict(result.config or {})}
         if result.error is not None:
             failure = _failure(result, f"trial {row['trial']}")
             failures.append(failure)
             row["error"] = failure.error
         else:
-            for key in (OBJECTIVE, "score", "heart_attacks_per_episode", "mean_return", "solved_seeds", "wall_seconds"):
-                row[key] = result.metrics.get(key)
+            for key in (OBJECTIVE, "score", "heart_attacks_per_episode", "mean_return", "solved_seeds", *TIMINGS):
+                row[key] = (result.metrics or {}).get(key)
         trials.append(row)
     trials.sort(key=lambda row: row["trial"])
     done = [row for row in trials if row.get(OBJECTIVE) is not None]
@@ -553,10 +588,10 @@ def _write_search_results(settings: SearchSettings, grid: Any, folder: Path) -> 
         "trials": trials,
         "failed": [f.to_dict() for f in failures],
         "best": best,
-    }
+    } | training.cpu_total(done)
     _write_trials_csv(folder / TRIALS_FILE, trials)
     if best is not None:
-        params = {k: best[k] for k in dict(grid[0].config) if k in best}
+        params = {k: best[k] for k in dict(grid[0].config or {}) if k in best}
         config = replace(apply_params(settings.base, params), preset="tuned")
         training.save_preset(config, folder / PRESET_FILE, search=str(folder), trial=best["trial_id"],
                              objective=best[OBJECTIVE], score=best["score"])  # fmt: skip
@@ -619,7 +654,7 @@ def plot_search(trials: Sequence[Mapping[str, Any]], path: str | os.PathLike[str
     return path
 
 
-def _write_json(path: Path, data: Any) -> None:
+def _write_json(path: Path, data: object) -> None:
     staging = path.with_name(f".{path.name}.partial")
     staging.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
     os.replace(staging, path)

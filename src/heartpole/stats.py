@@ -9,10 +9,17 @@ them against known values.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
+
+
+class Statistic(Protocol):
+    """A statistic of values along an axis, as NumPy's reductions are: ``statistic(array, axis=1)``."""
+
+    def __call__(self, values: np.ndarray, /, *, axis: int) -> float | np.ndarray: ...
+
 
 _Z975 = 1.959963984540054
 _T975_SMALL = {1: 12.7062, 2: 4.3027, 3: 3.1824, 4: 2.7764, 5: 2.5706, 6: 2.4469, 7: 2.3646, 8: 2.3060, 9: 2.2622}
@@ -50,6 +57,10 @@ def confidence_interval(values: np.ndarray) -> tuple[float, float]:
     """The 95% Student-t interval for the mean of ``values``: ``mean -+ t * sd / sqrt(n)``.
 
     ``(nan, nan)`` for fewer than two values.
+
+    >>> low, high = confidence_interval([1.0, 2.0, 3.0])  # 2 -+ 4.3027 / sqrt(3)
+    >>> round(low, 4), round(high, 4)
+    (-0.4842, 4.4842)
     """
     values = np.asarray(values, dtype=np.float64)
     mean = float(values.mean()) if len(values) else math.nan
@@ -59,7 +70,11 @@ def confidence_interval(values: np.ndarray) -> tuple[float, float]:
 
 def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> float | np.ndarray:
     """The mean of the middle half: ``floor(n / 4)`` values cut from each end (``scipy.stats.trim_mean(x,
-    0.25)``, which rliable uses); with fewer than 4 values, the plain mean."""
+    0.25)``, which rliable uses); with fewer than 4 values, the plain mean.
+
+    >>> float(interquartile_mean([1, 2, 3, 4, 5, 6, 7, 100]))  # 1, 2, 7 and 100 cut
+    4.5
+    """
     array = np.sort(np.asarray(values, dtype=np.float64), axis=axis)
     n = array.shape[axis]
     if n == 0:
@@ -70,7 +85,7 @@ def interquartile_mean(values: Sequence[float] | np.ndarray, axis: int = -1) -> 
 
 def bootstrap_interval(
     values: Sequence[float],
-    statistic: Callable[..., Any] = interquartile_mean,
+    statistic: Statistic = interquartile_mean,
     *,
     resamples: int = 10_000,
     confidence: float = 0.95,
@@ -79,6 +94,11 @@ def bootstrap_interval(
     """A percentile-bootstrap interval of ``statistic`` over ``values`` (resampled with replacement).
 
     ``statistic`` is called on a ``(resamples, n)`` array with ``axis=1``. Deterministic for a given ``seed``.
+
+    >>> values = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+    >>> low, high = bootstrap_interval(values, seed=0)
+    >>> low < float(interquartile_mean(values)) < high, bootstrap_interval(values, seed=0) == (low, high)
+    (True, True)
     """  # fmt: skip
     array = np.asarray(values, dtype=np.float64)
     if array.size == 0:

@@ -85,8 +85,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = observation_space(self.dynamics)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        n = len(self.dynamics.variables)
-        self._envs = np.zeros((n + len(kernel.OUTPUTS), self.num_envs), dtype=np.float32)  # states, then results
+        self._envs = np.zeros((len(self.dynamics.variables), self.num_envs), dtype=np.float32)  # the states
         self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
         self._started = False
         self._steps = 0  # every env's episode starts at reset and lasts max_steps: they end together
@@ -121,7 +120,7 @@ class HeartPoleVectorEnv(VectorEnv):
         """The current states, ``(num_variables, num_envs)`` float32 (a copy)."""
         if not self._started:
             raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
-        return self._states().copy()
+        return self._envs.copy()
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -143,11 +142,9 @@ class HeartPoleVectorEnv(VectorEnv):
             self._restart()
             nothing = np.zeros(n, dtype=bool)
             return self._observations(), np.zeros(n, dtype=np.float32), nothing, nothing.copy(), {}
-        kernel.step_envs(self._envs, action, self._rng, self.dynamics.packed, self.dynamics.layout)
-        # each result a copy of its own: blocks of one row are reused by the allocator, where one block of
-        # all rows was returned to the system and page-faulted back in at every step
-        reward, worked, risk, attack, new_score = (row.copy() for row in self._envs[len(self.dynamics.variables) :])
-        attack = attack > 0.5
+        results = kernel.new_results(n)  # fresh: they go out as they are
+        kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
+        reward, worked, risk, attack, new_score = results
         self._steps += 1
         ended = self._steps >= self.max_steps
         truncated, terminated = np.full(n, ended), np.zeros(n, dtype=bool)
@@ -179,7 +176,7 @@ class HeartPoleVectorEnv(VectorEnv):
             last = int(self._last_actions[i])
             frames.append(
                 rendering.draw_frame(
-                    dict(zip(names, self._states()[:, i].tolist())),
+                    dict(zip(names, self._envs[:, i].tolist())),
                     action=self.dynamics.actions[last].name if last >= 0 else None,
                     heart_attack=bool(self._last_attacks[i]),
                     heart_attacks=int(self._heart_attacks[i]),
@@ -192,11 +189,7 @@ class HeartPoleVectorEnv(VectorEnv):
     # ----------------------------------------------------------------------------------------------------
     def _observations(self) -> np.ndarray:
         """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s."""
-        return self._states().copy().T
-
-    def _states(self) -> np.ndarray:
-        """The states, ``(num_variables, num_envs)``: a view of the rows of ``_envs`` that hold them."""
-        return self._envs[: len(self.dynamics.variables)]
+        return self._envs.copy().T
 
     def _restart(self) -> None:
         """Start every env afresh; their random numbers go on from their counters."""

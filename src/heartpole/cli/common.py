@@ -8,7 +8,7 @@ import sys
 import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NoReturn, TypeAlias
+from typing import NoReturn, TypeAlias
 
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """What ``register(subparsers)`` of each command module receives: ``ArgumentParser.add_subparsers()``."""
@@ -18,11 +18,14 @@ class CommandError(Exception):
     """A problem the user can fix; printed as one line on stderr with exit code 2."""
 
 
-def tell_normalization(policy: Any) -> None:
+def tell_normalization(policy: object) -> None:
     """Say on stderr which saved observation statistics a loaded model applies, if any."""
     path = getattr(policy, "normalizer_path", None)
     if path is not None:
-        print(f"note: {policy.name} normalises observations with {path} (recorded with it)", file=sys.stderr)
+        print(
+            f"note: {getattr(policy, 'name', 'the model')} normalises observations with {path} (recorded with it)",
+            file=sys.stderr,
+        )
 
 
 def positive_int(text: str) -> int:
@@ -53,8 +56,15 @@ def raise_arg(message: str) -> None:
     raise argparse.ArgumentTypeError(message)
 
 
-def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    """A plain-text table with right-aligned numbers, for the terminal."""
+def format_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A plain-text table with right-aligned numbers, for the terminal.
+
+    >>> print(format_table(["policy", "score"], [["expert", 0.3268], ["nothing", 0.15]]))
+    policy   score
+    -------  -----
+    expert   0.327
+    nothing  0.150
+    """
     cells = [[str(h) for h in headers]] + [[_cell(v) for v in row] for row in rows]
     widths = [max(len(row[i]) for row in cells) for i in range(len(headers))]
     lines = []
@@ -65,14 +75,14 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return "\n".join(line.rstrip() for line in lines)
 
 
-def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
     """The same table in GitHub Markdown."""
     lines = ["| " + " | ".join(map(str, headers)) + " |", "|" + "---|" * len(headers)]
     lines += ["| " + " | ".join(_cell(v) for v in row) + " |" for row in rows]
     return "\n".join(lines)
 
 
-def _cell(value: Any) -> str:
+def _cell(value: object) -> str:
     if isinstance(value, float):
         return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else f"{value:.3f}"
     return str(value)

@@ -11,7 +11,8 @@ import json
 import math
 import signal
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, TypeVar
+from types import FrameType, ModuleType
+from typing import TYPE_CHECKING, TypeVar
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
 from heartpole.progress import progress
@@ -197,7 +198,7 @@ def _ci(interval: tuple[float, float]) -> str:
 def _sigterm_as_interrupt() -> Iterator[None]:
     """Treat SIGTERM like Ctrl-C while recording, so the temporary dataset is removed either way."""
 
-    def interrupt(signum: int, frame: Any) -> None:
+    def interrupt(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 
     try:
@@ -211,7 +212,7 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _offline(module: str) -> Any:
+def _offline(module: str) -> ModuleType:
     import importlib
 
     try:

@@ -5,9 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
+
+if TYPE_CHECKING:
+    from heartpole.evaluation import EvaluationResult
+    from heartpole.optimum import OptimumSolution
 
 ORDER = 15
 
@@ -103,7 +108,7 @@ def _params(items: list[str]) -> dict[str, Any]:
     return params
 
 
-def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, Any]:
+def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, EvaluationResult]:
     from heartpole.evaluation import evaluate
     from heartpole.progress import progress
 
@@ -115,7 +120,7 @@ def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, Any]:
     return results
 
 
-def format_solution(solution: Any, checks: dict[str, Any]) -> str:
+def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationResult]) -> str:
     """The solution's figures as a table, with the Monte-Carlo check if run."""
     p = solution.params
     rows = [
@@ -140,8 +145,7 @@ def format_solution(solution: Any, checks: dict[str, Any]) -> str:
     lines = [header, format_table(["measure", "value", "note"], rows)]
     if "optimal" in checks:
         result = checks["optimal"]
-        inside = result.expected_ci95[0] - solution.error_bound <= solution.expected_return
-        inside &= solution.expected_return <= result.expected_ci95[1] + solution.error_bound
+        inside = solution.within(result.expected_ci95)
         lines.append(
             f"the evaluator's 95% interval for `optimal` ({result.episodes} episodes, seed {result.seed}) "
             + ("contains" if inside else "does NOT contain")

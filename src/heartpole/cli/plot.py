@@ -9,12 +9,13 @@ failure never leaves a partial file behind.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from heartpole import plots
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
@@ -25,7 +26,13 @@ from heartpole.cli.common import (
     seed_int,
     tell_normalization,
 )
-from heartpole.progress import progress
+from heartpole.model import Params
+from heartpole.progress import Progress, progress
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from heartpole.policies import Policy
 
 ORDER = 30
 
@@ -120,22 +127,19 @@ def _add_episode_options(parser: argparse.ArgumentParser) -> None:
 
 
 # --------------------------------------------------------------------------------------------------------
-def _plots() -> Any:
-    """The :mod:`heartpole.plots` module, or a clear error when matplotlib is missing."""
-    from heartpole import plots
-
+def _require_matplotlib() -> None:
+    """A clear error when matplotlib is missing."""
     try:
         plots.require_matplotlib()
     except ImportError:
         raise CommandError(f"plots need matplotlib; {INSTALL_HINT}") from None
-    return plots
 
 
-def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+def _env_kwargs(args: argparse.Namespace) -> dict[str, int]:
     return {} if args.steps is None else {"max_steps": args.steps}
 
 
-def _policy(args: argparse.Namespace) -> Callable[[np.ndarray], Any]:
+def _policy(args: argparse.Namespace) -> Policy:
     """The policy named by ``--policy`` for ``--env``, or a one-line error."""
     from heartpole.policies import load_policy
 
@@ -147,7 +151,7 @@ def _policy(args: argparse.Namespace) -> Callable[[np.ndarray], Any]:
     return policy
 
 
-def _write_figure(figure: Any, path: Path, plots: Any) -> None:
+def _write_figure(figure: Figure, path: Path) -> None:
     atomic_write(path, lambda temporary: plots.save_figure(figure, temporary))
     print(f"wrote {path}")
 
@@ -155,16 +159,16 @@ def _write_figure(figure: Any, path: Path, plots: Any) -> None:
 # --------------------------------------------------------------------------------------------------------
 def plot_model(args: argparse.Namespace) -> int:
     """``heartpole plot model --out DIR``: one PNG per model figure."""
-    plots = _plots()
+    _require_matplotlib()
     targets = output_files(args.out, [f"{stem}.png" for stem in plots.MODEL_FIGURES], force=args.force)
     for make, target in zip(plots.MODEL_FIGURES.values(), targets):
-        _write_figure(make(plots.Params()), target, plots)
+        _write_figure(make(Params()), target)
     return 0
 
 
 def plot_episode(args: argparse.Namespace) -> int:
     """``heartpole plot episode --policy P --out FILE.png``: one episode as a dashboard."""
-    plots = _plots()
+    _require_matplotlib()
     target = output_file(args.out, force=args.force, suffixes=[".png"])
     policy = _policy(args)
     trace = plots.trace_episode(policy, args.env, args.seed, **_env_kwargs(args))
@@ -172,13 +176,13 @@ def plot_episode(args: argparse.Namespace) -> int:
         f"{args.env}, policy {args.policy}, seed {args.seed}: return {trace.episode_return:.2f}, "
         f"final score {trace.score[-1]:.3f}, heart attacks {int(trace.heart_attacks.sum())}"
     )
-    _write_figure(plots.episode_figure(trace, title), target, plots)
+    _write_figure(plots.episode_figure(trace, title), target)
     return 0
 
 
 def plot_training(args: argparse.Namespace) -> int:
     """``heartpole plot training DIR``: the learning curve(s) of a training run."""
-    plots = _plots()
+    _require_matplotlib()
     folder = Path(args.dir)
     if not folder.is_dir():
         raise CommandError(f"{folder}: no such folder (give the folder of 'heartpole train --out')")
@@ -193,14 +197,12 @@ def plot_training(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as error:
         raise CommandError(str(error)) from None
     seeds = f", {len(curves)} seeds" if len(curves) > 1 else ""
-    _write_figure(plots.training_figure(curves, f"Learning curve: {folder}{seeds}"), target, plots)
+    _write_figure(plots.training_figure(curves, f"Learning curve: {folder}{seeds}"), target)
     return 0
 
 
 def record(args: argparse.Namespace) -> int:
     """``heartpole record --policy P --out FILE.mp4|.gif``: a video of one episode from its rgb_array frames."""
-    from heartpole import plots
-
     target = output_file(args.out, force=args.force, suffixes=list(plots.VIDEO_SUFFIXES))
     _check_video_writer(target.suffix.lower())
     policy = _policy(args)
@@ -218,7 +220,7 @@ def record(args: argparse.Namespace) -> int:
     return 0
 
 
-def _counted(frames: Iterator[np.ndarray], bar: Any) -> Iterator[np.ndarray]:
+def _counted(frames: Iterator[np.ndarray], bar: Progress) -> Iterator[np.ndarray]:
     for frame in frames:
         bar.update()
         yield frame
@@ -237,11 +239,6 @@ def _default_steps(env_id: str) -> int:
 def _check_video_writer(suffix: str) -> None:
     """A clear error before any work when the writer for ``suffix`` is not installed."""
     try:
-        if suffix == ".mp4":
-            import imageio  # noqa: F401
-            import imageio_ffmpeg  # noqa: F401
-        else:
-            import PIL  # noqa: F401
-    except ImportError:
-        needed = "imageio and imageio-ffmpeg" if suffix == ".mp4" else "Pillow"
-        raise CommandError(f"{suffix} videos need {needed}; {INSTALL_HINT}") from None
+        plots.require_video_writer(suffix)
+    except ImportError as error:
+        raise CommandError(f"{error}; {INSTALL_HINT}") from None

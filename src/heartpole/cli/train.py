@@ -1,7 +1,8 @@
 """``heartpole train``: train an agent with Stable-Baselines3 on the native vector env, then evaluate it.
 
-The work is done by :mod:`heartpole.training` (imported only when the command runs, so the rest of the
-command line works without the optional ``train`` extra); this module parses, checks and prints.
+The work is done by :mod:`heartpole.training` (:func:`heartpole.training.train`; imported only when the
+command runs, so the rest of the command line works without the optional ``train`` extra); this module
+parses, checks and prints.
 """
 
 from __future__ import annotations
@@ -13,6 +14,9 @@ import math
 import os
 import sys
 import types
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
@@ -20,7 +24,7 @@ from heartpole.evaluation import SOLVED_REGRET
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 
 if TYPE_CHECKING:
-    from heartpole.training import TrainConfig
+    from heartpole.training import ScoreRate, TrainConfig
 
 ORDER = 20
 
@@ -66,10 +70,10 @@ examples:
 
 --backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
 is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
-later runs skip most of the compile time. It saves the same files (an SB3 model.zip with the trained
-weights), so heartpole evaluate and heartpole plot read them alike.
+later runs skip most of the compile time. Its default preset differs in two numbers: minibatches of 256
+(twice the gradient steps for the same arithmetic) and 250,000 steps. It saves the same files (an SB3
+model.zip with the trained weights), so heartpole evaluate and heartpole plot read them alike.
 """
-BACKENDS = ("sb3", "jax")
 
 
 def register(subparsers: Subparsers) -> None:
@@ -173,7 +177,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
     from dataclasses import replace
 
-    from heartpole.training import load_preset, preset_config
+    from heartpole.training import BACKENDS, load_preset, preset_config
 
     is_file = args.preset not in PRESETS and (args.preset.endswith(".json") or os.path.isfile(args.preset))
     if args.preset not in PRESETS and not is_file:
@@ -194,7 +198,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
             if args.preset == "tutorial" and score_rate != "best":
                 raise ValueError("--score-rate applies to the default preset; the tutorial trains on the env's reward")
             algo = args.algo.lower() if args.algo else None
-            return preset_config(args.preset, algo, score_rate=score_rate, **overrides)
+            backend = getattr(args, "backend", "sb3")
+            backend = backend if backend in BACKENDS else "sb3"  # run_train refuses others
+            return preset_config(args.preset, algo, score_rate=score_rate, backend=backend, **overrides)
         config = load_preset(args.preset)
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
@@ -203,9 +209,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     return replace(config, **overrides)
 
 
-def _score_rate(text: str) -> float | str:
+def _score_rate(text: str) -> ScoreRate:
     if text in ("best", "auto"):
-        return text
+        return "best" if text == "best" else "auto"
     try:
         value = float(text)
     except ValueError:
@@ -215,14 +221,6 @@ def _score_rate(text: str) -> float | str:
     return value
 
 
-def default_out(config: TrainConfig, backend: str = "sb3") -> str:
-    """``runs/<algo>`` for the default preset, ``runs/<preset>-<algo>`` for the others (``-jax`` appended
-    for the jax backend)."""
-    preset = os.path.splitext(os.path.basename(config.preset))[0]
-    out = f"runs/{config.algo}" if preset == "default" else f"runs/{preset}-{config.algo}"
-    return out + ("-jax" if backend == "jax" else "")
-
-
 # ------------------------------------------------------------------------------------------------------
 # the handler
 
@@ -230,14 +228,12 @@ def default_out(config: TrainConfig, backend: str = "sb3") -> str:
 def run_train(args: argparse.Namespace) -> int:
     """``heartpole train``: check everything, train (one seed or several), print the evaluation."""
     _require_training_extra()
-    if args.backend not in BACKENDS:
-        raise CommandError(f"unknown backend {args.backend!r}; choose one of {', '.join(BACKENDS)}")
+    from heartpole import training
+
+    if args.backend not in training.BACKENDS:
+        raise CommandError(f"unknown backend {args.backend!r}; choose one of {', '.join(training.BACKENDS)}")
     if args.backend == "jax" and importlib.util.find_spec("jax") is None:
         raise CommandError("--backend jax needs JAX, which this Python cannot import: pip install 'heartpole[jax]'")
-    import torch
-
-    from heartpole import training
-    from heartpole.policies import env_dynamics
 
     config = build_config(args)
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
@@ -245,42 +241,28 @@ def run_train(args: argparse.Namespace) -> int:
     eval_seed = whole_number("--eval-seed", args.eval_seed, 0)
     cpus_per_trial = _check_ray_options(args, seeds)
     try:
-        env_dynamics(config.env_id)
         if config.timesteps < config.n_envs:
             raise ValueError(f"--timesteps ({config.timesteps}) must be at least --n-envs ({config.n_envs})")
-        if args.backend == "jax":
-            from heartpole.jax.ppo import PPOSettings
-
-            PPOSettings.from_config(config)
-        out = training.check_output_folder(args.out or default_out(config, args.backend), args.force)
+        out = training.check_run(config, args.out or training.default_out(config, args.backend), args.backend,
+                                 args.force)  # fmt: skip
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
-    # Small networks train fastest on one thread; more threads only contend on a shared machine.
-    torch.set_num_threads(1)
     if not args.json:
         _announce(config, seeds, out, args.backend)
+    say = None if args.json else lambda run: print(format_run(run), flush=True)
+
+    def compiled(seconds: float) -> None:
+        if not args.json:
+            which = "all seeds at once" if seeds is not None else f"seed {config.seed}"
+            print(f"compiled in {seconds:.1f} s; training {which} ...", flush=True)
+
     try:
-        with training.staged_output(out, args.force) as staging:
-            result: dict[str, Any]
-            if args.backend == "jax":
-                result = _train_jax(args, config, seeds, staging, out, episodes, eval_seed)
-            elif args.ray:
-                result = _train_seeds_ray(args, config, seeds, staging, out, episodes, eval_seed, cpus_per_trial)
-            elif seeds is None:
-                result = training.train_run(
-                    config, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out
-                )
-            else:
-                result = training.train_seeds(
-                    config,
-                    seeds,
-                    staging,
-                    eval_episodes=episodes,
-                    eval_seed=eval_seed,
-                    progress=True,
-                    final_folder=out,
-                    on_run=None if args.json else lambda run: print(format_run(run), flush=True),
-                )
+        with _ray_errors(args, out):
+            result = training.train(
+                config, out, seeds=seeds, backend=args.backend, ray=args.ray, address=args.address,
+                cpus_per_trial=cpus_per_trial, force=args.force, eval_episodes=episodes, eval_seed=eval_seed,
+                on_run=say, on_compiled=compiled,
+            )  # fmt: skip
     except OSError as error:
         raise CommandError(f"cannot write {out}: {error.strerror or error}") from None
     if args.json:
@@ -311,23 +293,16 @@ def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int
     return whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1
 
 
-def _train_seeds_ray(
-    args: argparse.Namespace, config: Any, seeds: Any, staging: Any, out: Any, episodes: int, eval_seed: int, cpus: int
-) -> dict[str, Any]:
+@contextmanager
+def _ray_errors(args: argparse.Namespace, out: Path) -> Iterator[None]:
+    """With ``--ray``: every seed failing, or an unreachable cluster, as one line (the failures on stderr)."""
+    if not args.ray:
+        yield
+        return
     from heartpole import scale
 
     try:
-        return scale.train_seeds_ray(
-            config,
-            seeds,
-            staging,
-            eval_episodes=episodes,
-            eval_seed=eval_seed,
-            address=args.address,
-            cpus_per_trial=cpus,
-            final_folder=out,
-            on_run=None if args.json else lambda run: print(format_run(run), flush=True),
-        )
+        yield
     except scale.AllTrialsFailedError as error:
         for failure in error.failures:
             print(failure.line(), file=sys.stderr)
@@ -339,24 +314,6 @@ def _train_seeds_ray(
 def missing_ray_modules() -> list[str]:
     """The modules of the ``ray`` extra that this Python cannot import (empty when Ray can run)."""
     return [name for name in RAY_MODULES if importlib.util.find_spec(name) is None]
-
-
-def _train_jax(
-    args: argparse.Namespace, config: Any, seeds: list[int] | None, staging: Any, out: Any, episodes: int,
-    eval_seed: int,
-) -> dict[str, Any]:  # fmt: skip
-    from heartpole.jax.ppo import train_seeds
-
-    def compiled(seconds: float) -> None:
-        if not args.json:
-            which = "all seeds at once" if seeds is not None else f"seed {config.seed}"
-            print(f"compiled in {seconds:.1f} s; training {which} ...", flush=True)
-
-    return train_seeds(
-        config, seeds, staging, eval_episodes=episodes, eval_seed=eval_seed, progress=True, final_folder=out,
-        on_compiled=compiled,
-        on_run=None if args.json or seeds is None else lambda run: print(format_run(run), flush=True),
-    )  # fmt: skip
 
 
 def missing_training_modules() -> list[str]:
@@ -372,7 +329,7 @@ def _require_training_extra() -> None:
         )
 
 
-def _announce(config: TrainConfig, seeds: list[int] | None, out: Any, backend: str = "sb3") -> None:
+def _announce(config: TrainConfig, seeds: list[int] | None, out: Path, backend: str = "sb3") -> None:
     which = f"seeds {', '.join(map(str, seeds))}" if seeds is not None else f"seed {config.seed}"
     print(
         f"training {config.algo.upper()} ({config.preset} preset) on {config.env_id}: {config.timesteps:,} steps, "
@@ -399,6 +356,11 @@ def format_run(run: dict[str, Any]) -> str:
         + (f"{run['compile_seconds']:.0f} s compiling, " if "compile_seconds" in run else "")
         + f"{run['train_seconds']:.0f} s training, {run['wall_seconds']:.0f} s in all: {verdict}"
     )
+
+
+def format_cpu(what: str, seconds: float) -> str:
+    """One line for the CPU time ``what`` took, in seconds and CPU-hours (what it costs on any machine)."""
+    return f"CPU time of {what}: {seconds:,.0f} s ({seconds / 3600:.2f} CPU-hours)"
 
 
 def format_regret(run: dict[str, Any]) -> str:
@@ -449,5 +411,7 @@ def format_summary(summary: dict[str, Any]) -> str:
     lines = [format_table(headers, rows), "", f"across {agg['seeds']} seeds, interquartile mean [95% bootstrap CI]:"]
     lines += [f"  {label:<22} {figure}" for label, figure in aggregate_figures(agg) if label != "wall time (s)"]
     lines.append(f"solved ({describe_bar(summary['solved_bar'])}): {summary['solved_seeds']} of {agg['seeds']} seeds")
+    if "cpu_seconds" in summary:
+        lines.append(format_cpu("the runs (training and evaluation)", summary["cpu_seconds"]))
     lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary.get("failed", ())]
     return "\n".join(lines)

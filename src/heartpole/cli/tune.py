@@ -7,16 +7,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 import types
 from pathlib import Path
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
+    format_cpu,
     missing_ray_modules,
     missing_training_modules,
     whole_number,
@@ -129,7 +128,10 @@ def run_tune(args: argparse.Namespace) -> int:
     except ValueError as error:
         raise CommandError(" ".join(str(error).split())) from None
     out = Path(args.out or f"runs/tune-{settings.base.algo}").resolve()
-    _check_out(scale, out, args.resume, args.force)
+    try:
+        scale.prepare_search_folder(out, args.resume, args.force)
+    except ValueError as error:
+        raise CommandError(str(error)) from None
     if not args.json:
         print(_announce(scale.read_settings(out) if args.resume else settings, out, args.resume), flush=True)
     try:
@@ -151,23 +153,6 @@ def run_tune(args: argparse.Namespace) -> int:
               + (", search.png" if "plot" in summary else "") + "; train it with:")  # fmt: skip
         print(f"  heartpole train --preset {out / scale.PRESET_FILE} --seeds 0-9")
     return 1 if summary["failed"] else 0
-
-
-def _check_out(scale: ModuleType, out: Path, resume: bool, force: bool) -> None:
-    if resume:
-        if force:
-            raise CommandError("--resume continues the search in --out and --force replaces it: give one")
-        if not scale.can_resume(out):
-            raise CommandError(f"--resume: no search to continue in {out}")
-        return
-    if out.exists() and not out.is_dir():
-        raise CommandError(f"--out {out} is a file, not a folder")
-    if out.is_dir() and any(out.iterdir()):
-        if not force:
-            raise CommandError(f"--out {out} is not empty; pass --resume to continue its search or --force to replace")
-        if not (out / scale.SEARCH_SETTINGS_FILE).is_file():
-            raise CommandError(f"--out {out} holds no search ({scale.SEARCH_SETTINGS_FILE}); refusing to replace it")
-        shutil.rmtree(out)
 
 
 def _announce(settings: SearchSettings, out: Path, resume: bool) -> str:
@@ -202,5 +187,7 @@ def format_trials(summary: dict[str, Any]) -> str:
     lines.append(
         f"best: trial {best['trial']}, expected-risk return {best['objective']:.3f}, score {best['score']:.4f}"
     )
+    if "cpu_seconds" in summary:
+        lines.append(format_cpu("the finished trials (training and evaluation)", summary["cpu_seconds"]))
     lines += [f"{failure['trial']} failed: {failure['error']}" for failure in summary["failed"]]
     return "\n".join(lines)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -71,6 +72,7 @@ class PPOSettings:
     batch_size: int = 512
     n_epochs: int = 10
     learning_rate: float = 3e-4
+    anneal_learning_rate: bool = False
     gamma: float = 0.95
     gae_lambda: float = 0.95
     clip_range: float = 0.2
@@ -99,7 +101,7 @@ class PPOSettings:
         if config.reward.score_rate == "auto":
             raise ValueError("the jax backend does not support score_rate='auto'; give a number")
         known = {"n_steps", "batch_size", "n_epochs", "learning_rate", "gamma", "gae_lambda", "clip_range",
-                 "ent_coef", "vf_coef", "max_grad_norm"}  # fmt: skip
+                 "ent_coef", "vf_coef", "max_grad_norm", "anneal_learning_rate"}  # fmt: skip
         unknown = sorted(set(config.hyperparameters) - known)
         if unknown:
             raise ValueError(f"the jax backend's PPO has no hyperparameter(s) {unknown}; it has {sorted(known)}")
@@ -176,7 +178,7 @@ def adam_init(params: Any) -> Adam:
     return Adam(zeros, zeros, jnp.int32(0))
 
 
-def adam_step(params: Any, grads: Any, state: Adam, lr: float, max_norm: float) -> tuple[Any, Adam]:
+def adam_step(params: Any, grads: Any, state: Adam, lr: float | jax.Array, max_norm: float) -> tuple[Any, Adam]:
     """Clip ``grads`` to global norm ``max_norm``, then one Adam step (betas 0.9, 0.999; eps 1e-5)."""
     norm = jnp.sqrt(sum(jnp.sum(g**2) for g in jax.tree_util.tree_leaves(grads)))
     grads = jax.tree_util.tree_map(lambda g: g * jnp.minimum(1.0, max_norm / (norm + 1e-6)), grads)
@@ -325,6 +327,9 @@ def make_parts(
         entropy = -(jnp.exp(log_probs) * log_probs).sum(-1).mean()
         return policy_loss + s.vf_coef * value_loss - s.ent_coef * entropy
 
+    def learning_rate(steps_done: jax.Array) -> jax.Array | float:
+        return learning_rate_at(s, steps_done // (s.n_epochs * minibatches))
+
     def update(runner: Runner, _: Any) -> tuple[Runner, Any]:
         runner, (transitions, ended) = jax.lax.scan(env_step, runner, None, s.n_steps)
         obs, action, log_prob, value, reward, done = transitions
@@ -342,7 +347,7 @@ def make_parts(
             def minibatch(carry: tuple[Any, Adam], batch: tuple[jax.Array, ...]) -> tuple[Any, None]:
                 network, adam = carry
                 grads = jax.grad(loss)(network, batch)
-                return adam_step(network, grads, adam, s.learning_rate, s.max_grad_norm), None
+                return adam_step(network, grads, adam, learning_rate(adam.count), s.max_grad_norm), None
 
             (network, adam), _ = jax.lax.scan(minibatch, (network, adam), shuffled)
             return (network, adam, key), None
@@ -367,6 +372,16 @@ def make_parts(
         return jax.lax.scan(update, runner, None, updates)
 
     return start, run
+
+
+def learning_rate_at(s: PPOSettings, update: jax.Array) -> jax.Array | float:
+    """The learning rate of update ``update`` (0, 1, ...): constant, or with ``anneal_learning_rate`` SB3's
+    linear schedule (:class:`heartpole.training.runs.LinearSchedule`), given the share of the run left once
+    that update's rollout is collected."""
+    if not s.anneal_learning_rate:
+        return s.learning_rate
+    collected = (update + 1).astype(jnp.float32) * s.rollout
+    return s.learning_rate * jnp.maximum(1.0 - collected / s.timesteps, 0.0)
 
 
 def chunk_size(updates: int, pieces: int = 20) -> int:
@@ -482,6 +497,27 @@ def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Any:
     return tqdm(total=total, desc=name, unit="step", unit_scale=True, disable=disable)
 
 
+def _warm_up(env_id: str, env_kwargs: dict[str, Any]) -> threading.Thread:
+    """Start, on a thread beside training (which runs compiled code without the GIL), what saving and
+    evaluating the seeds will wait for otherwise: PyTorch's lazily imported compiler (every
+    ``torch.optim`` optimiser imports it, and SB3's models build one), the NumPy env's compiled kernels
+    and the optimum the regret is measured against. Errors are left for the real work to raise."""
+
+    def work() -> None:
+        try:
+            import torch._dynamo  # noqa: F401
+
+            from heartpole.evaluation import evaluate
+
+            evaluate("nothing", env_id, episodes=2, env_kwargs=env_kwargs)
+        except Exception:  # noqa: BLE001, S110 - the same work runs again afterwards and reports its errors
+            pass
+
+    thread = threading.Thread(target=work, name="heartpole-warm-up", daemon=True)
+    thread.start()
+    return thread
+
+
 def train_seeds(
     config: Any,
     seeds: Sequence[int] | None,
@@ -524,6 +560,7 @@ def train_seeds(
     compile_seconds = time.perf_counter() - started
     if on_compiled is not None:
         on_compiled(compile_seconds)
+    warm_up = _warm_up(config.env_id, dict(config.env_kwargs))
     started = time.perf_counter()
     pieces = []
     with _progress_bar(settings.num_updates * settings.rollout * len(seeds), seeds, progress) as bar:
@@ -533,6 +570,7 @@ def train_seeds(
             bar.update(chunk * settings.rollout * len(seeds))
     ended = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs, axis=1), *pieces)
     timings = {"compile_seconds": compile_seconds, "train_seconds": time.perf_counter() - started}
+    warm_up.join()
     runs: list[dict[str, Any]] = []
     for i, seed in enumerate(seeds):
 

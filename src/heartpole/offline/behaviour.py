@@ -24,7 +24,7 @@ import numpy as np
 from heartpole.policies import Policy, RandomPolicy, policy_name
 
 
-def check_actions(actions: Any, size: int, num_actions: int, name: str) -> np.ndarray:
+def check_actions(actions: object, size: int, num_actions: int, name: str) -> np.ndarray:
     """``actions`` as an index array, or ``ValueError`` naming the policy, what it returned and what is accepted."""
     array = np.asarray(actions)
     expected = f"expected {size} integer actions in 0..{num_actions - 1}"

@@ -29,9 +29,13 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from minari import MinariDataset
+    from minari.data_collector import EpisodeBuffer
 
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
@@ -109,7 +113,7 @@ def record_dataset(
     description: str | None = None,
     num_envs: int | None = None,
     progress: Callable[[int], None] | None = None,
-) -> Any:
+) -> MinariDataset:
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
     Args:
@@ -250,7 +254,7 @@ def reference_scores(env_id: str = "HeartPole-v0") -> tuple[float, float]:
 # recording
 
 
-def to_buffers(trajectories: Trajectories) -> list[Any]:
+def to_buffers(trajectories: Trajectories) -> list[EpisodeBuffer]:
     """One ``minari.data_collector.EpisodeBuffer`` per episode, infos aligned with observations."""
     from minari.data_collector import EpisodeBuffer
 
@@ -421,7 +425,7 @@ def local_dataset_ids() -> list[str]:
     return sorted(found)
 
 
-def load_local(target_id: str) -> Any:
+def load_local(target_id: str) -> MinariDataset:
     """``minari.load_dataset(target_id)`` for a dataset in the local folder; never downloads.
 
     Raises:

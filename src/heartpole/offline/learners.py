@@ -20,9 +20,12 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
 
 from heartpole.offline.trajectories import Trajectories
 
@@ -37,7 +40,7 @@ class NetworkPolicy:
         name: the policy's name in results tables.
     """
 
-    def __init__(self, network: Any, mean: np.ndarray, scale: np.ndarray, name: str) -> None:
+    def __init__(self, network: torch.nn.Module, mean: np.ndarray, scale: np.ndarray, name: str) -> None:
         self.network, self.mean, self.scale, self.name = network, mean, scale, name
 
     def scores(self, obs: np.ndarray) -> np.ndarray:
@@ -169,7 +172,7 @@ def _standardiser(data: Trajectories) -> tuple[np.ndarray, np.ndarray]:
     return flat.mean(axis=0).astype(np.float32), scale.astype(np.float32)
 
 
-def _mlp(inputs: int, outputs: int, hidden: int, seed: int) -> Any:
+def _mlp(inputs: int, outputs: int, hidden: int, seed: int) -> torch.nn.Sequential:
     """Two hidden ReLU layers, initialised from ``seed`` without touching PyTorch's global generator."""
     import torch
 

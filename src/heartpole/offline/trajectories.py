@@ -17,6 +17,8 @@ from heartpole.offline.behaviour import EpsilonGreedy, check_actions, check_dete
 from heartpole.policies import quiet_version_warnings
 
 if TYPE_CHECKING:
+    from minari import MinariDataset
+
     from heartpole.env import HeartPole
     from heartpole.vector import HeartPoleVectorEnv
 
@@ -77,7 +79,7 @@ class Trajectories:
         rewards = self.expected_rewards() if expected else self.rewards
         return rewards @ (gamma ** np.arange(self.steps))
 
-    def subset(self, index: Any) -> Trajectories:
+    def subset(self, index: slice | np.ndarray) -> Trajectories:
         """The episodes selected by ``index`` (a slice, mask or index array)."""
         return Trajectories(
             **{f.name: getattr(self, f.name)[index] for f in fields(self) if f.name != "penalty"},
@@ -91,7 +93,7 @@ class Trajectories:
         return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names}, penalty=parts[0].penalty)
 
     @classmethod
-    def from_dataset(cls, dataset: Any, penalty: float | None = None) -> Trajectories:
+    def from_dataset(cls, dataset: MinariDataset, penalty: float | None = None) -> Trajectories:
         """Read a Minari dataset recorded by :func:`heartpole.offline.datasets.record_dataset`.
 
         Raises:
@@ -199,7 +201,7 @@ def _collect_chunk(
     )
 
 
-def _penalty(dataset: Any) -> float:
+def _penalty(dataset: MinariDataset) -> float:
     import gymnasium as gym
 
     env_id = dataset.storage.metadata.get("env_id", "HeartPole-v0")

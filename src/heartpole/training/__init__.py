@@ -2,7 +2,7 @@
 
 This package needs the optional ``train`` extra (``pip install 'heartpole[train]'``: Stable-Baselines3,
 PyTorch, tqdm); ``import heartpole`` never imports it. Its parts, each a module of its own (``adapter``,
-``reward``, ``presets``, ``callbacks``, ``runs``, ``outputs``), all importable from here:
+``reward``, ``presets``, ``callbacks``, ``runs``, ``outputs``, ``backends``), all importable from here:
 
 * :class:`HeartPoleSB3VecEnv` puts HeartPole's native vector env behind SB3's ``VecEnv`` interface, so
   PPO, A2C and DQN step all envs with one array operation. Episodes end by truncation only, reported as
@@ -17,6 +17,8 @@ PyTorch, tqdm); ``import heartpole`` never imports it. Its parts, each a module 
   normalised), ``heartpole.json``, ``learning_curve.csv`` and ``evaluation.json`` (2,000 episodes of
   :func:`heartpole.evaluation.evaluate` on the saved files); :func:`train_seeds` trains several seeds and
   summarises them with the interquartile mean and a bootstrap interval (rliable's recommendation).
+* :func:`train` (module ``backends``) is what ``heartpole train`` runs: one seed or several, in a staged
+  output folder, on Stable-Baselines3, on Ray Tune trials, or with PPO compiled in JAX.
 
 Why naive training fails on HeartPole, and what the default does about it
 --------------------------------------------------------------------------
@@ -60,6 +62,7 @@ if importlib.util.find_spec("stable_baselines3") is None or importlib.util.find_
 # ruff: noqa: E402 - the parts are imported after the check above, so a missing extra says what to install
 
 from heartpole.training.adapter import HeartPoleSB3VecEnv, make_vec_env
+from heartpole.training.backends import BACKENDS, Backend, check_run, default_out, train
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
 from heartpole.training.outputs import (
     EVALUATION_FILE,
@@ -74,12 +77,15 @@ from heartpole.training.presets import (
     DEFAULT_ALGO,
     DEFAULT_HYPERPARAMETERS,
     DEFAULT_TIMESTEPS,
+    JAX_PPO_HYPERPARAMETERS,
+    JAX_PPO_TIMESTEPS,
     PRESET_FORMAT,
     PRESET_HELP,
     PRESETS,
     RATE_SHARE_OF_BEST,
     SOLVED_HEART_ATTACKS,
     SOLVED_SCORE,
+    ScoreRate,
     TrainConfig,
     env_solved_bar,
     load_preset,
@@ -92,10 +98,12 @@ from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 from heartpole.training.runs import (
     AGGREGATE_LABELS,
     AGGREGATED,
+    RunCallback,
     TrainedModel,
     aggregate,
     aggregate_figures,
     build_model,
+    cpu_total,
     run_summary,
     seeds_summary,
     train_model,
@@ -116,11 +124,14 @@ __all__ = [
     "SOLVED_SCORE",
     "RATE_SHARE_OF_BEST",
     "TrainConfig",
+    "ScoreRate",
     "DEFAULT_HYPERPARAMETERS",
     "PRESETS",
     "PRESET_HELP",
     "DEFAULT_ALGO",
     "DEFAULT_TIMESTEPS",
+    "JAX_PPO_HYPERPARAMETERS",
+    "JAX_PPO_TIMESTEPS",
     "preset_config",
     "shaped_reward_rate",
     "env_solved_bar",
@@ -142,8 +153,15 @@ __all__ = [
     "seeds_summary",
     "AGGREGATED",
     "aggregate",
+    "cpu_total",
     "AGGREGATE_LABELS",
     "aggregate_figures",
+    "RunCallback",
+    "Backend",
+    "BACKENDS",
+    "default_out",
+    "check_run",
+    "train",
     "TRAIN_EXTRA",
     "_write_json",
     "_versions",

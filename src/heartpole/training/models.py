@@ -10,10 +10,10 @@ import pickle
 import sys
 import warnings
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -33,6 +33,27 @@ from heartpole.policies import (
 )
 
 
+class RunningStats(Protocol):
+    """Running mean and variance of observations, as SB3's ``RunningMeanStd`` keeps them."""
+
+    @property
+    def mean(self) -> np.ndarray: ...
+    @property
+    def var(self) -> np.ndarray: ...
+
+
+class Normalizer(Protocol):
+    """What :class:`ModelPolicy` reads of SB3's ``VecNormalize``: the statistics and how they are applied
+    (``norm_obs``, when present and false, turns normalisation off)."""
+
+    @property
+    def obs_rms(self) -> RunningStats: ...
+    @property
+    def epsilon(self) -> float: ...
+    @property
+    def clip_obs(self) -> float: ...
+
+
 class ModelPolicy:
     """A Stable-Baselines3 model as a :data:`Policy`: optional observation normalisation, then
     ``model.predict(obs, deterministic=True)``.
@@ -44,11 +65,12 @@ class ModelPolicy:
         name: the policy's name in results tables.
     """
 
-    def __init__(self, model: Predictor, normalizer: Any = None, name: str = "model") -> None:
+    def __init__(self, model: Predictor, normalizer: Normalizer | None = None, name: str = "model") -> None:
         self.model = model
         self.name = name
         self.normalization = _normalization(normalizer)
         self.normalizer_path: Path | None = None  # the file the statistics came from, when loaded from one
+        self._greedy = _greedy_actor(model)
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """Observations as the model saw them in training (VecNormalize's formula), float32."""
@@ -59,8 +81,41 @@ class ModelPolicy:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         with _one_torch_thread():
+            if self._greedy is not None:
+                return self._greedy(self.normalize(_observations(obs)))
             actions, _ = self.model.predict(self.normalize(_observations(obs)), deterministic=True)
         return np.asarray(actions, dtype=np.int64).reshape(-1)
+
+
+def _greedy_actor(model: Any) -> Callable[[np.ndarray], np.ndarray] | None:
+    """For a PPO or A2C model with discrete actions, ``predict(obs, deterministic=True)`` without its
+    detours: the actor's logits and their argmax, in inference mode; ``None`` for any other model.
+
+    ``predict`` takes the argmax of the softmax of the same logits (the same action, but where two logits
+    round to one probability), and spends a third of an evaluation's time building the distribution and
+    toggling training mode on every call.
+    """
+    policy = getattr(model, "policy", None)
+    if "torch" not in sys.modules or policy is None:
+        return None
+    from stable_baselines3.common.distributions import CategoricalDistribution
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    if type(policy) is not ActorCriticPolicy or not isinstance(policy.action_dist, CategoricalDistribution):
+        return None
+    torch = sys.modules["torch"]
+    policy.set_training_mode(False)
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        with torch.inference_mode():
+            # given the actor's extractor, extract_features returns one tensor (a pair only without one)
+            features: Any = policy.extract_features(
+                torch.as_tensor(obs, device=policy.device), policy.pi_features_extractor
+            )
+            logits = policy.action_net(policy.mlp_extractor.forward_actor(features))
+            return np.asarray(logits.argmax(dim=1).cpu().numpy(), dtype=np.int64)
+
+    return act
 
 
 @contextmanager
@@ -84,7 +139,7 @@ def _one_torch_thread() -> Iterator[None]:
             torch.set_num_threads(threads)
 
 
-def _normalization(normalizer: Any) -> tuple[np.ndarray, np.ndarray, float] | None:
+def _normalization(normalizer: Normalizer | None) -> tuple[np.ndarray, np.ndarray, float] | None:
     if normalizer is None or not getattr(normalizer, "norm_obs", True):
         return None
     rms = normalizer.obs_rms
@@ -240,7 +295,7 @@ def _load_model(path: Path, algo: str) -> BaseAlgorithm:
         raise ValueError(f"{path}: cannot load it as a {algo.upper()} model ({_one_line(error)})") from None
 
 
-def _check_spaces(path: Path, model: Any, dynamics: Dynamics) -> None:
+def _check_spaces(path: Path, model: BaseAlgorithm, dynamics: Dynamics) -> None:
     obs_shape = (len(dynamics.variables),)
     model_obs = tuple(getattr(model.observation_space, "shape", ()) or ())
     model_actions = getattr(model.action_space, "n", None)
@@ -251,7 +306,7 @@ def _check_spaces(path: Path, model: Any, dynamics: Dynamics) -> None:
         )
 
 
-def _load_normalizer(path: Path) -> Any:
+def _load_normalizer(path: Path) -> Normalizer:
     try:
         with path.open("rb") as handle:
             normalizer = pickle.load(handle)

@@ -10,7 +10,6 @@ import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -20,10 +19,6 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
     CURVE_COLUMNS,
     SIDECAR_NAME,
 )
-
-if TYPE_CHECKING:
-    pass
-
 
 EVALUATION_FILE = "evaluation.json"
 SUMMARY_FILE = "summary.json"
@@ -104,7 +99,7 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
             writer.writerow({key: row[key] for key in CURVE_COLUMNS})
 
 
-def _write_json(path: Path, data: Any) -> None:
+def _write_json(path: Path, data: object) -> None:
     path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 

@@ -8,17 +8,13 @@ import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole.model import check_integer
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
-
-if TYPE_CHECKING:
-    pass
-
-from heartpole.model import check_integer
 from heartpole.training.outputs import _write_json
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
@@ -28,6 +24,9 @@ episodes ..."""
 SOLVED_SCORE = 0.30
 """... and at least this final productivity score. Other envs have their own bar,
 :func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+ScoreRate: TypeAlias = Literal["best", "auto"] | float
+"""How a preset sets the shaped reward's rate: ``"best"`` (:data:`RATE_SHARE_OF_BEST` of the env's best known
+score), ``"auto"`` (estimated while training) or the rate itself. See :func:`preset_config`."""
 RATE_SHARE_OF_BEST = 0.98
 """The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
 0.68 for v1."""
@@ -154,10 +153,31 @@ PRESET_HELP = {
 }
 DEFAULT_ALGO = {"default": "ppo", "tutorial": "dqn"}
 DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
+Backend: TypeAlias = Literal["sb3", "jax"]
+"""``"sb3"``: Stable-Baselines3 (PyTorch); ``"jax"``: :mod:`heartpole.jax.ppo`, the whole run compiled."""
+BACKENDS: tuple[Backend, ...] = ("sb3", "jax")
+"""Where ``heartpole train`` runs: Stable-Baselines3, or PPO compiled with JAX (:mod:`heartpole.jax.ppo`)."""
+JAX_PPO_HYPERPARAMETERS: Mapping[str, Any] = {
+    # The default preset's PPO with minibatches of 256 instead of 512: twice the gradient steps per env
+    # step for the same arithmetic, which matters here because the JAX trainer's time goes into the
+    # gradient steps, not into the env. Measured with 10 seeds (benchmarks/jax_presets.py): it met the
+    # regret bar with 10 of 10 seeds at 250,000 steps, where the default met it with 8 of 10 (10 of 10 at
+    # 400,000). Fewer epochs or an annealed learning rate (half the arithmetic) fell short at 250-300k.
+    **DEFAULT_HYPERPARAMETERS["ppo"],
+    "batch_size": 256,
+}
+"""The default preset's PPO hyperparameters with ``--backend jax``."""
+JAX_PPO_TIMESTEPS = 250_000
+"""The default preset's timesteps with ``--backend jax``."""
 
 
 def preset_config(
-    preset: str = "default", algo: str | None = None, *, score_rate: float | str = "best", **overrides: Any
+    preset: str = "default",
+    algo: str | None = None,
+    *,
+    score_rate: ScoreRate = "best",
+    backend: str = "sb3",
+    **overrides: Any,
 ) -> TrainConfig:
     """The :class:`TrainConfig` of ``preset`` for ``algo`` (default: the preset's own), with ``overrides``.
 
@@ -171,9 +191,20 @@ def preset_config(
     :func:`heartpole.registry.best_known_rate`), or ``"auto"`` where none is known; ``"auto"`` estimates
     it while training; a number fixes it.
 
+    ``backend="jax"`` gives the default preset's PPO as ``heartpole train --backend jax`` runs it:
+    :data:`JAX_PPO_HYPERPARAMETERS` for :data:`JAX_PPO_TIMESTEPS` steps.
+
     Raises:
-        ValueError: an unknown preset or algorithm, or a bad override.
+        ValueError: an unknown preset, algorithm or backend, or a bad override.
+
+    >>> config = preset_config("tutorial")
+    >>> config.algo, config.net_arch, config.n_envs, config.reward.is_env_reward
+    ('dqn', (16, 16), 1, True)
+    >>> preset_config(env_id="HeartPole-v1").reward.score_rate  # 98% of v1's best known score
+    0.68
     """
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
     algo = DEFAULT_ALGO[preset] if algo is None else algo
@@ -196,6 +227,8 @@ def preset_config(
         )
         return replace(base, **overrides)
     base = TrainConfig(algo=algo, preset=preset, hyperparameters=dict(DEFAULT_HYPERPARAMETERS[algo]))
+    if backend == "jax" and algo == "ppo":
+        base = replace(base, timesteps=JAX_PPO_TIMESTEPS, hyperparameters=dict(JAX_PPO_HYPERPARAMETERS))
     config = replace(base, **overrides)
     if "reward" not in overrides:
         rate = shaped_reward_rate(config.env_id, config.env_kwargs, score_rate)
@@ -204,7 +237,7 @@ def preset_config(
 
 
 def shaped_reward_rate(
-    env_id: str, env_kwargs: Mapping[str, Any], score_rate: float | str = "best"
+    env_id: str, env_kwargs: Mapping[str, Any], score_rate: ScoreRate = "best"
 ) -> float | Literal["auto"]:
     """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
     from heartpole.policies import env_dynamics

@@ -7,9 +7,12 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, TypeAlias
 
 import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
@@ -19,18 +22,13 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
     VECNORMALIZE_NAME,
 )
 from heartpole.stats import bootstrap_interval, interquartile_mean
-
-if TYPE_CHECKING:
-    pass
-
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
-
 from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
 from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, _write_json, write_curve
 from heartpole.training.presets import TrainConfig, env_solved_bar, meets_bar
+
+RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
+"""Called with each seed's summary (:func:`run_summary`) as it finishes."""
 
 # ------------------------------------------------------------------------------------------------------
 # training
@@ -44,6 +42,19 @@ class TrainedModel:
     normalizer: VecNormalize | None
     curve: list[dict[str, float]]
     seconds: float
+
+
+@dataclass(frozen=True)
+class LinearSchedule:
+    """A learning rate falling linearly from ``initial`` to 0 over the run: SB3 calls it with the share of
+    the run left after the rollout it is about to learn from (``anneal_learning_rate`` in the
+    hyperparameters; the JAX trainer follows the same schedule)."""
+
+    initial: float
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The learning rate with ``progress_remaining`` (1 at the start, 0 at the end) of the run left."""
+        return self.initial * max(progress_remaining, 0.0)
 
 
 def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
@@ -62,6 +73,8 @@ def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
     )
     algorithm = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}[config.algo]
     hyperparameters = dict(config.hyperparameters)
+    if hyperparameters.pop("anneal_learning_rate", False):
+        hyperparameters["learning_rate"] = LinearSchedule(float(hyperparameters.get("learning_rate", 3e-4)))
     if config.algo == "ppo" and "batch_size" in hyperparameters:  # a minibatch cannot exceed the rollout
         rollout = int(hyperparameters.get("n_steps", 2048)) * config.n_envs
         hyperparameters["batch_size"] = min(int(hyperparameters["batch_size"]), rollout)
@@ -118,7 +131,7 @@ def train_run(
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     trained = train_model(config, progress=progress)
     trained.model.save(folder / MODEL_NAME)
     if trained.normalizer is not None:
@@ -157,15 +170,20 @@ def train_run(
     evaluation = result.to_dict()
     _write_json(folder / EVALUATION_FILE, evaluation)
     eval_seconds = time.perf_counter() - eval_started
-    sidecar.update(eval_seconds=round(eval_seconds, 2), wall_seconds=round(time.perf_counter() - started, 2))
+    sidecar.update(
+        eval_seconds=round(eval_seconds, 2),
+        wall_seconds=round(time.perf_counter() - started, 2),
+        cpu_seconds=round(time.process_time() - cpu_started, 2),
+    )
     _write_json(folder / SIDECAR_NAME, sidecar)
-    return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"])
+    return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"], sidecar["cpu_seconds"])
 
 
 def run_summary(
-    config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float
+    config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float, cpu: float | None = None
 ) -> dict[str, Any]:
-    """One run's line in a summary: seed, evaluation figures, whether it is solved, timings.
+    """One run's line in a summary: seed, evaluation figures, whether it is solved, timings (``cpu``: the
+    CPU time of the process that trained and evaluated it, all its threads, where measured).
 
     Solved means a regret whose 95% upper bound is at most :data:`heartpole.evaluation.SOLVED_REGRET` where
     the optimum is known (:mod:`heartpole.optimum`), and the env's heart-attack and score bar elsewhere.
@@ -190,7 +208,7 @@ def run_summary(
         "solved_bar": bar if by_regret is None else {"regret_at_most": SOLVED_REGRET},
         "train_seconds": round(train_seconds, 2),
         "wall_seconds": round(wall, 2),
-    }
+    } | ({} if cpu is None else {"cpu_seconds": round(cpu, 2)})
 
 
 def train_seeds(
@@ -201,7 +219,7 @@ def train_seeds(
     eval_episodes: int = 2000,
     eval_seed: int = 0,
     progress: bool = False,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
+    on_run: RunCallback | None = None,
     final_folder: str | os.PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Train ``config`` once per seed into ``folder/seed_<s>/`` and write ``folder/summary.json``.
@@ -252,7 +270,15 @@ def seeds_summary(
         "aggregate": aggregate(runs),
         "solved_bar": runs[0]["solved_bar"] if runs else env_solved_bar(config.env_id, config.env_kwargs),
         "solved_seeds": sum(run["solved"] for run in runs),
-    }
+    } | cpu_total(runs)
+
+
+def cpu_total(runs: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """``{"cpu_seconds": total}`` over ``runs`` when every run measured its CPU time, else ``{}``: the
+    figure that says what a number of seeds costs, wherever and however side by side they ran."""
+    if not runs or any(run.get("cpu_seconds") is None for run in runs):
+        return {}
+    return {"cpu_seconds": round(sum(float(run["cpu_seconds"]) for run in runs), 2)}
 
 
 # ------------------------------------------------------------------------------------------------------
