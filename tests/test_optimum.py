@@ -18,6 +18,7 @@ from heartpole import model
 from heartpole.dynamics import Dynamics, step_tables
 from heartpole.model import TIME_ELAPSED, TIME_SINCE_SLEPT, WORK_DONE, Params, productivity
 from heartpole.optimum import (
+    DRINKING_ACTIONS,
     NotCoveredError,
     OptimumSolution,
     drink_floor,
@@ -230,13 +231,69 @@ def test_without_heart_attack_risk_a_drinking_policy_far_outscores_the_no_drink_
 
     kwargs = {"heart_attack_proclivity": 0.0}
     dynamics = env_dynamics("HeartPole-v0", kwargs)
-    solution = solve_drinking(dynamics.params, 1.0, sweeps=60, alertness_step=0.05, intoxication_step=0.004)
+    solution = solve_drinking(dynamics.params, 1.0, sweeps=60, alertness_step=0.1, fade_substeps=1)
     result = heartpole.evaluate(solution.policy(dynamics), episodes=200, seed=0, env_kwargs=kwargs)
     assert result.score > 2 * v0.expected_score
     assert result.drinks_per_episode > 100 and result.sleeps_per_episode > 0
     assert math.isnan(result.regret)  # the solver does not certify an optimum here
+    assert math.isnan(solution.rate_bound)  # 60 sweeps are not the whole episode
     with pytest.raises(NotCoveredError, match="proclivity=0"):
         solve_drinking(Params(), 1.0, sweeps=1)
+    with pytest.raises(ValueError, match="alertness_step 0.3"):
+        solve_drinking(dynamics.params, 1.0, sweeps=1, alertness_step=0.3)
+
+
+def test_the_drinking_grid_follows_a_half_hour_without_interpolating() -> None:
+    """A half-hour moves every grid point onto a grid point: alertness - drain(t), intoxication x decay_rate."""
+    from heartpole.model import alertness_decay
+    from heartpole.optimum import DrinkingGrid
+
+    params = Params(heart_attack_proclivity=0.0)
+    grid = DrinkingGrid(params, alertness_step=0.1, fade_substeps=2)
+    alertness, intoxication, t = grid.states()
+    value = (np.sin(3 * alertness) + 40 * intoxication + 0.01 * t).astype(np.float32)
+    after = grid._after_half_hour(value)  # the next decision's value seen from (x, t, b) before the half-hour
+    expected = np.sin(3 * (alertness - alertness_decay(t))) + 40 * intoxication * params.decay_rate + 0.01 * (t + 1)
+    inside = (intoxication * params.decay_rate >= grid.x[1]) & (alertness - alertness_decay(t) >= -2.0 + 1e-9)
+    inside &= t < grid.awake - 1
+    np.testing.assert_allclose(after[inside[:, :-1]], expected[:, :-1][inside[:, :-1]], atol=2e-5)
+    beer = grid._beer_intoxication(np.broadcast_to(intoxication**2, grid.shape).astype(np.float32))
+    x = grid.x[~grid.beer_off]  # E[(x + U(0.01, 0.03))^2], up to the piecewise-linear interpolant's error
+    exact = x**2 + 0.04 * x + (0.03**3 - 0.01**3) / 0.06
+    np.testing.assert_allclose(beer[~grid.beer_off, 0, 0], exact, rtol=0, atol=1e-5)
+
+
+@pytest.mark.slow
+def test_the_drinking_grid_agrees_with_the_env_on_a_fixed_rule() -> None:
+    """A drinking rule's expected work on the grid matches the evaluator's episodes (the env's own step)."""
+    from heartpole.optimum import drinking_rule_value
+    from heartpole.policies import env_dynamics
+
+    def rule(alertness: np.ndarray, intoxication: np.ndarray, t: np.ndarray) -> np.ndarray:
+        return np.where(t >= 45, 3, np.where(alertness < 1.5, 1, np.where(intoxication < 0.125, 2, 0)))
+
+    kwargs = {"heart_attack_proclivity": 0.0, "max_steps": 150}
+    dynamics = env_dynamics("HeartPole-v0", kwargs)
+    work, spent = drinking_rule_value(dynamics.params, rule, 150)
+    indices = np.asarray([dynamics.action_index(name) for name in DRINKING_ACTIONS])
+    result = heartpole.evaluate(
+        lambda obs: indices[rule(obs[:, 0], obs[:, 2], obs[:, 3])], episodes=2000, seed=0, env_kwargs=kwargs
+    )
+    times = 150 + 16 * result.sleeps
+    works = result.scores * times
+    assert spent == pytest.approx(times.mean(), abs=1e-3)  # the rule sleeps at t = 45: a deterministic day
+    # 4 standard errors plus 0.2% for the grid
+    assert abs(work - works.mean()) < 4 * works.std(ddof=1) / len(works) ** 0.5 + 0.002 * work
+
+
+@pytest.mark.slow
+def test_no_policy_reaches_issue_16s_drinking_score_on_the_grid() -> None:
+    """The whole episode's optimum (end-game included) on the grid: E[work - 1.1235 time] < 0 for every policy."""
+    from heartpole.optimum import solve_drinking
+
+    solution = solve_drinking(Params(heart_attack_proclivity=0.0), 1.1235, sweeps=1000)
+    assert solution.start_value < -2.0  # the grid's error, checked against the env above, is well below this
+    assert solution.rate_bound == 1.1235  # a negative start value: the rate itself is out of reach
 
 
 def test_within_widens_the_interval_by_the_grid_error(v0: OptimumSolution) -> None:
