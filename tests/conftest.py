@@ -1,4 +1,6 @@
-"""Shared test setup: solutions of heartpole.optimum are cached in a temporary folder, not the user's cache."""
+"""Shared test setup: solutions of heartpole.optimum and JAX's compiled code are cached in temporary folders,
+not the user's caches (another process writing the same cache at the same time, such as a second test run or
+a training run, must not hand a test half-written entries)."""
 
 import os
 
@@ -6,7 +8,10 @@ import pytest
 
 
 @pytest.fixture(autouse=True, scope="session")
-def _optimum_cache(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Point ``HEARTPOLE_CACHE_DIR`` at a session temporary folder unless the caller chose one."""
+def _private_caches(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Point ``HEARTPOLE_CACHE_DIR`` and ``HEARTPOLE_JAX_CACHE`` at session temporary folders unless the
+    caller chose them."""
     if "HEARTPOLE_CACHE_DIR" not in os.environ:
         os.environ["HEARTPOLE_CACHE_DIR"] = str(tmp_path_factory.mktemp("heartpole-cache"))
+    if "HEARTPOLE_JAX_CACHE" not in os.environ:
+        os.environ["HEARTPOLE_JAX_CACHE"] = str(tmp_path_factory.mktemp("heartpole-jax-cache"))
