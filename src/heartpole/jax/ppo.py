@@ -459,14 +459,8 @@ def _seed_result(
     export_sb3(config, runner, folder)
     training.write_curve(folder / policies.CURVE_NAME, curve)
     sidecar = {
-        "algo": "ppo",
+        **training.run_description(config),
         "backend": "jax",
-        "env_id": config.env_id,
-        "seed": config.seed,
-        "timesteps": config.timesteps,
-        "preset": config.preset,
-        "policy": "MlpPolicy",
-        "config": config.to_dict(),
         "vecnormalize": policies.VECNORMALIZE_NAME if config.normalize_observations or config.normalize_rewards
         else None,
         **{key: round(value, 2) for key, value in timings.items()},

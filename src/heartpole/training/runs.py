@@ -140,13 +140,7 @@ def train_run(
     from heartpole.training.models import file_sha256
 
     sidecar: dict[str, Any] = {
-        "algo": config.algo,
-        "env_id": config.env_id,
-        "seed": config.seed,
-        "timesteps": config.timesteps,
-        "preset": config.preset,
-        "policy": "MlpPolicy",
-        "config": config.to_dict(),
+        **run_description(config),
         "model": MODEL_NAME,
         "model_sha256": file_sha256(folder / MODEL_NAME),
         # the statistics saved with this model: load_policy applies these and no others
@@ -177,6 +171,20 @@ def train_run(
     )
     _write_json(folder / SIDECAR_NAME, sidecar)
     return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"], sidecar["cpu_seconds"])
+
+
+def run_description(config: TrainConfig) -> dict[str, Any]:
+    """What every backend's ``heartpole.json`` says first: the run's algorithm, env, seed, steps, preset,
+    policy class and whole configuration."""
+    return {
+        "algo": config.algo,
+        "env_id": config.env_id,
+        "seed": config.seed,
+        "timesteps": config.timesteps,
+        "preset": config.preset,
+        "policy": "MlpPolicy",
+        "config": config.to_dict(),
+    }
 
 
 def run_summary(
