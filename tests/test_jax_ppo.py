@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from dataclasses import replace
@@ -50,6 +51,36 @@ def test_adam_step_matches_torch() -> None:
         torch.nn.utils.clip_grad_norm_([tensor], 0.5)
         optimizer.step()
     np.testing.assert_allclose(params, tensor.detach().numpy(), rtol=1e-5, atol=1e-6)
+
+
+# Run in a child limited to 2 CPUs (XLA sizes its thread pool by them): the old batched QR hung there
+# within about 20 calls, every time (7 of 7 runs on a 2-core machine); 300 calls take about a second.
+_VMAPPED_INIT = """
+import jax, jax.numpy as jnp
+from heartpole.jax import ppo
+init = jax.jit(jax.vmap(lambda key: ppo.init_network(key, 6, 4, (64, 64))))
+for i in range(300):
+    jax.block_until_ready(init(jax.vmap(jax.random.key)(jnp.arange(2 * i, 2 * i + 2, dtype=jnp.uint32))))
+"""
+
+
+def test_vmapped_network_init_does_not_hang_on_two_cpus() -> None:
+    def two_cpus() -> None:
+        os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:2])
+
+    try:
+        subprocess.run([sys.executable, "-c", _VMAPPED_INIT], check=True, timeout=120, preexec_fn=two_cpus)
+    except subprocess.TimeoutExpired:
+        pytest.fail("300 vmapped network initialisations did not finish in 120 s: the batched-QR hang is back")
+
+
+def test_orthogonal_init_vmapped_equals_one_key_at_a_time() -> None:
+    keys = jax.vmap(jax.random.key)(jnp.arange(3, dtype=jnp.uint32))
+    batched = jax.jit(jax.vmap(lambda key: ppo.orthogonal(key, (64, 32), 2.0)))(keys)
+    one_by_one = [jax.nn.initializers.orthogonal(2.0)(key, (64, 32), jnp.float32) for key in keys]
+    np.testing.assert_array_equal(batched, np.stack(one_by_one))
+    for matrix in np.asarray(batched) / 2.0:
+        np.testing.assert_allclose(matrix.T @ matrix, np.eye(32), atol=1e-5)
 
 
 def test_settings_from_the_default_preset_and_bad_configs() -> None:

@@ -143,12 +143,27 @@ def init_network(key: jax.Array, obs_dim: int, num_actions: int, net_arch: Seque
         gains = [math.sqrt(2.0)] * len(net_arch) + [head_gain]
         keys = jax.random.split(key, len(gains))
         return [
-            (jax.nn.initializers.orthogonal(gain)(k, (n_in, n_out), jnp.float32), jnp.zeros(n_out, jnp.float32))
+            (orthogonal(k, (n_in, n_out), gain), jnp.zeros(n_out, jnp.float32))
             for k, n_in, n_out, gain in zip(keys, sizes[:-1], sizes[1:], gains)
         ]
 
     actor_key, critic_key = jax.random.split(key)
     return {"actor": mlp(actor_key, num_actions, 0.01), "critic": mlp(critic_key, 1, 1.0)}
+
+
+def orthogonal(key: jax.Array, shape: tuple[int, int], gain: float) -> jax.Array:
+    """A random orthogonal ``float32`` matrix times ``gain`` (``jax.nn.initializers.orthogonal``), made one
+    matrix at a time when ``vmap``-ed over keys.
+
+    Batched, jaxlib's CPU QR splits the batch into tasks on XLA's thread pool and waits for them on a
+    thread of that same pool; when every thread of the pool waits so (two QRs at once on a 2-core machine),
+    none is left to run the tasks and the process hangs for ever. One matrix at a time, QR runs inline."""
+
+    def one(key: jax.Array) -> jax.Array:
+        return jax.nn.initializers.orthogonal(gain)(key, shape, jnp.float32)
+
+    one_at_a_time: Callable[[jax.Array], jax.Array] = jax.custom_batching.sequential_vmap(one)
+    return one_at_a_time(key)
 
 
 def forward(layers: list[tuple[jax.Array, jax.Array]], x: jax.Array) -> jax.Array:
