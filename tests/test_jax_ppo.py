@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from dataclasses import replace
@@ -56,6 +55,9 @@ def test_adam_step_matches_torch() -> None:
 # Run in a child limited to 2 CPUs (XLA sizes its thread pool by them): the old batched QR hung there
 # within about 20 calls, every time (7 of 7 runs on a 2-core machine); 300 calls take about a second.
 _VMAPPED_INIT = """
+import os
+if hasattr(os, "sched_setaffinity"):  # Linux; before JAX starts its pool
+    os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:2])
 import jax, jax.numpy as jnp
 from heartpole.jax import ppo
 init = jax.jit(jax.vmap(lambda key: ppo.init_network(key, 6, 4, (64, 64))))
@@ -65,11 +67,8 @@ for i in range(300):
 
 
 def test_vmapped_network_init_does_not_hang_on_two_cpus() -> None:
-    def two_cpus() -> None:
-        os.sched_setaffinity(0, sorted(os.sched_getaffinity(0))[:2])
-
     try:
-        subprocess.run([sys.executable, "-c", _VMAPPED_INIT], check=True, timeout=120, preexec_fn=two_cpus)
+        subprocess.run([sys.executable, "-c", _VMAPPED_INIT], check=True, timeout=120)
     except subprocess.TimeoutExpired:
         pytest.fail("300 vmapped network initialisations did not finish in 120 s: the batched-QR hang is back")
 
