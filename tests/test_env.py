@@ -209,7 +209,6 @@ def test_step_before_reset_raises() -> None:
         ({"heart_attack_proclivity": 1.01}, "heart_attack_proclivity"),
         ({"max_steps": 0}, "max_steps"),
         ({"render_mode": "video"}, "render_mode"),
-        ({"sleepiness": 3}, "unknown HeartPole argument"),
     ],
 )
 def test_invalid_constructor_arguments(kwargs: dict, message: str) -> None:
@@ -217,6 +216,28 @@ def test_invalid_constructor_arguments(kwargs: dict, message: str) -> None:
         heartpole.HeartPole(**kwargs)
     with pytest.raises(ValueError, match=message):
         gym.make("HeartPole-v0", **kwargs)
+
+
+@pytest.mark.parametrize(
+    "make, function",
+    [
+        (heartpole.HeartPole, "HeartPole.__init__"),
+        (lambda **kw: gym.make("HeartPole-v0", **kw), "HeartPole.__init__"),
+        (lambda **kw: gym.make("HeartPole-v1", **kw), "HeartPole.__init__"),
+        (lambda **kw: heartpole.HeartPoleVectorEnv(2, **kw), "HeartPoleVectorEnv.__init__"),
+        (
+            lambda **kw: gym.make_vec("HeartPole-v0", 2, vectorization_mode="vector_entry_point", **kw),
+            "HeartPoleVectorEnv.__init__",
+        ),
+    ],  # fmt: skip
+)
+def test_an_unexpected_keyword_is_pythons_type_error(make, function: str) -> None:
+    """Libraries branch on Python's wording: TorchRL passes frameskip and drops it on exactly this TypeError."""
+    with pytest.raises(TypeError, match=rf"^{function}\(\) got an unexpected keyword argument 'frameskip'; ") as e:
+        make(frameskip=4)
+    assert "decay_rate" in str(e.value) and "heart_attack_proclivity" in str(e.value)  # what is accepted
+    with pytest.raises(TypeError, match=r"argument 'frameskip' \(and 'sleepiness'\); it accepts"):
+        make(frameskip=4, sleepiness=3)
 
 
 def first_heart_attack(env: heartpole.HeartPole) -> int:

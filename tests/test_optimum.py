@@ -218,6 +218,8 @@ def test_cli_solves_saves_and_explains_refusals(tmp_path, capsys, v0: OptimumSol
     assert "HeartPole-v0's six" in capsys.readouterr().err
     assert main(["optimum", "--param", "max_steps", "--check", "0"]) == 2
     assert "NAME=VALUE" in capsys.readouterr().err
+    assert main(["optimum", "--param", "sleepiness=1", "--check", "0"]) == 2  # one line, no traceback
+    assert "unexpected keyword argument 'sleepiness'" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -109,7 +109,7 @@ def test_make_with_both_names_agrees_everywhere() -> None:
 
 
 def test_a_variants_length_is_given_as_max_steps() -> None:
-    with pytest.raises(ValueError, match=r"episode length is max_steps .*pass max_steps=40"):
+    with pytest.raises(TypeError, match=r"episode length is max_steps .*pass max_steps=40"):
         heartpole.register_variant("LongPole-v0", max_episode_steps=40)
     assert "LongPole-v0" not in gym.registry
 

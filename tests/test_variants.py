@@ -470,9 +470,6 @@ BAD_DEFINITIONS = [
     ({"heart_attack_penalty": -5}, "heart_attack_penalty"),
     ({"wake_alertness": (1.3, 0.7)}, "wake_alertness must be"),
     ({"wake_alertness": 1.0}, "wake_alertness must be"),
-    ({"sleepiness": 3}, r"unknown parameter\(s\) \['sleepiness'\]; a variant takes actions, variables and"),
-    ({"render_mode": "ansi"}, r"render_mode is chosen when making the env.*gymnasium.make"),
-    ({"num_envs": 4}, "gymnasium.make_vec"),
     ({"replace": "yes"}, "replace must be True or False"),
 ]
 
@@ -493,6 +490,22 @@ def test_bad_definitions_fail_when_defined(definition: dict, message: str) -> No
         heartpole.register_variant("BadPole-v0", **definition)
     assert str(raised.value).startswith("HeartPole variant 'BadPole-v0': ") or "replace" in definition
     assert "BadPole-v0" not in gym.registry
+
+
+@pytest.mark.parametrize(
+    "keywords, message",
+    [
+        ({"sleepiness": 3}, r"^register_variant\(\) got an unexpected keyword argument 'sleepiness'; it accepts \["),
+        ({"render_mode": "ansi"}, r"argument 'render_mode': it is chosen when making the env.*gymnasium.make"),
+        ({"num_envs": 4}, r"argument 'num_envs'.*gymnasium.make_vec"),
+        ({"max_episode_steps": 9}, r"argument 'max_episode_steps'.*pass max_steps=9"),
+    ],
+)
+def test_unexpected_keywords_are_type_errors(keywords: dict, message: str) -> None:
+    before = dict(gym.registry)
+    with pytest.raises(TypeError, match=message):
+        heartpole.register_variant("BadPole-v0", **keywords)
+    assert dict(gym.registry) == before
 
 
 def test_definitions_are_copied_so_later_edits_cannot_break_a_variant(variants) -> None:

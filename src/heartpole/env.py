@@ -15,7 +15,12 @@ from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
-from heartpole.model import Params, Variable
+from heartpole.model import Params, Variable, check_keywords
+
+CONSTRUCTOR_KEYWORDS = (
+    "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps"
+)  # fmt: skip
+"""The env constructors' own keywords; every other keyword is a :class:`heartpole.Params` field."""
 
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
@@ -39,12 +44,11 @@ def build_dynamics(
     actions: Sequence[Action] | None,
     variables: Sequence[Variable] | None,
     model_params: dict[str, Any],
+    constructor: str = "HeartPole.__init__",
 ) -> Dynamics:
-    """The :class:`Dynamics` for an env's constructor arguments, with a clear error for unknown ones."""
-    known = set(Params.__dataclass_fields__) - {"heart_attack_proclivity", "max_steps"}
-    unknown = sorted(set(model_params) - known)
-    if unknown:
-        raise ValueError(f"unknown HeartPole argument(s) {unknown}; model parameters are {sorted(known)}")
+    """The :class:`Dynamics` for an env's constructor arguments; ``TypeError`` names any unknown keyword."""
+    accepted = [*CONSTRUCTOR_KEYWORDS, *(set(Params.__dataclass_fields__) - set(CONSTRUCTOR_KEYWORDS))]
+    check_keywords(constructor, model_params, accepted)
     params = Params(heart_attack_proclivity=heart_attack_proclivity, max_steps=max_steps, **model_params)
     extra: dict[str, Any] = {}
     if actions is not None:

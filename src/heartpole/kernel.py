@@ -13,11 +13,14 @@ float64, at half the vector width). What this module adds is the machinery aroun
   both call; the single env is simply one env of them, so the two agree bit for bit.
 
 Compiled code is cached on disk (numba's ``cache=True``): the first use after an install compiles for a
-few seconds, later processes load it. With ``NUMBA_DISABLE_JIT=1`` everything runs as plain Python.
+few seconds, later processes load it. Where numba can write nowhere (a read-only install run by a user with
+no writable home) the step compiles in memory in every process, with one warning naming ``NUMBA_CACHE_DIR``.
+With ``NUMBA_DISABLE_JIT=1`` everything runs as plain Python.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, Literal, TypedDict
 
@@ -58,8 +61,38 @@ class InlineOptions(TypedDict):
     inline: Literal["never", "always"]
 
 
-JIT: JitOptions = {"cache": True, "error_model": "numpy", "nogil": True, "fastmath": {"contract", "arcp"}}
-"""numba options for everything here: cached on disk; division follows NumPy (no ZeroDivisionError
+CACHE_WARNING = (
+    "HeartPole compiles its step in memory, again in every process (a few seconds): numba finds no writable "
+    "folder to cache compiled code in (beside the installed package, or the user's cache). Set NUMBA_CACHE_DIR "
+    "to a writable folder to keep it."
+)
+"""The one warning of an install that numba cannot cache beside, run by a user with no writable home."""
+
+
+def _cacheable() -> bool:
+    """Whether numba can cache this module's compiled code on disk, asked of numba itself.
+
+    numba picks a folder when a function is decorated with ``cache=True``: ``$NUMBA_CACHE_DIR`` if set,
+    else ``__pycache__`` beside the source, else the user's cache (``~/.cache/numba``); with none writable
+    (a read-only install, no writable home) the decoration raises ``RuntimeError``. This probe makes that
+    choice once, for this very file, so the import never fails: compiled code then lives in memory only.
+    """
+    try:
+        njit(cache=True)(_cacheable)
+    except RuntimeError:
+        warnings.warn(CACHE_WARNING, RuntimeWarning, stacklevel=3)
+        return False
+    return True
+
+
+JIT: JitOptions = {
+    "cache": _cacheable(),
+    "error_model": "numpy",
+    "nogil": True,
+    "fastmath": {"contract", "arcp"},
+}
+"""numba options for everything here: cached on disk where numba can write (:func:`_cacheable`); division
+follows NumPy (no ZeroDivisionError
 checks, which stop LLVM from vectorising); the GIL is released. Two of LLVM's fast-math liberties, no
 others: ``contract`` fuses a multiply and an add into one instruction (rounded once), ``arcp`` divides by
 a constant as a multiplication by its reciprocal; infinities, NaNs and the order of operations stay

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import types
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple, TypeGuard
 
@@ -249,6 +249,21 @@ def is_number(value: object) -> TypeGuard[float]:
     """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool (typed as ``float``, which
     NumPy's scalars stand in for)."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_keywords(function: str, given: Iterable[str], accepted: Iterable[str]) -> None:
+    """Raise Python's ``TypeError`` for keyword arguments of ``function`` outside ``accepted``, naming those.
+
+    The message starts as Python's own (``f() got an unexpected keyword argument 'x'``): libraries branch on
+    it (TorchRL retries an env without ``frameskip`` on exactly that error).
+    """
+    known = list(accepted)
+    unexpected = [name for name in given if name not in known]
+    if unexpected:
+        also = f" (and {', '.join(map(repr, unexpected[1:]))})" if unexpected[1:] else ""
+        raise TypeError(
+            f"{function}() got an unexpected keyword argument {unexpected[0]!r}{also}; it accepts {sorted(known)}"
+        )
 
 
 def check_integer(name: str, value: Any, minimum: int) -> int:

@@ -449,7 +449,8 @@ def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dy
     """The :class:`Dynamics` of the HeartPole env ``env_id`` built with ``env_kwargs``.
 
     Raises:
-        ValueError: for an unknown id, bad keyword arguments or an env that is not a HeartPole.
+        ValueError: for an unknown id, a bad value or an env that is not a HeartPole.
+        TypeError: for a keyword argument the env does not take.
     """
     import gymnasium as gym
 
@@ -458,8 +459,8 @@ def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dy
             env = gym.make(env_id, **dict(env_kwargs or {}))
     except gym.error.Error as error:
         raise ValueError(f"unknown env {env_id!r} ({_one_line(error)}); HeartPole envs: {_heartpole_ids()}") from None
-    except TypeError as error:
-        raise ValueError(f"bad arguments for env {env_id!r}: {_one_line(error)}") from None
+    except TypeError as error:  # an unexpected keyword stays Python's TypeError, which callers branch on
+        raise TypeError(f"env {env_id!r}: {_one_line(error)}") from None
     dynamics = getattr(env.unwrapped, "dynamics", None)
     env.close()
     if not isinstance(dynamics, Dynamics):

@@ -32,7 +32,7 @@ from gymnasium.envs.registration import EnvSpec, parse_env_id
 from heartpole.actions import V0_ACTIONS, Action, as_action
 from heartpole.dynamics import BOOKKEEPING, Dynamics
 from heartpole.env import build_dynamics
-from heartpole.model import V0_VARIABLES, Params, Variable, heart_attack_risk
+from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords, heart_attack_risk
 
 V0_ID = "HeartPole-v0"
 V1_ID = "HeartPole-v1"
@@ -174,7 +174,8 @@ def register_variant(
     Raises:
         ValueError: a malformed or taken id; an action or variable of the wrong type, shape or value, or
             with a missing or unknown field; duplicate names; an effect on a variable the variant lacks or
-            that the step keeps itself; an unknown parameter or one out of range.
+            that the step keeps itself; a parameter out of range.
+        TypeError: a keyword argument that is not a parameter of a variant (Python's own wording).
 
     >>> import gymnasium as gym
     >>> import heartpole
@@ -187,11 +188,11 @@ def register_variant(
     (Discrete(5), 'drink_tea')
     """
     _check_id(id, replace)
+    model_params = _params(params)
     try:
         action_set = _actions(actions)
         variable_set = _variables(variables)
         _check_effects(action_set, variable_set)
-        model_params = _params(params)
         proclivity = model_params.pop("heart_attack_proclivity", Params.heart_attack_proclivity)
         max_steps = model_params.pop("max_steps", Params.max_steps)
         # The env's own constructor path: what passes here builds every env of the variant.
@@ -328,17 +329,18 @@ def _check_effects(actions: tuple[Action, ...], variables: tuple[Variable, ...])
 
 
 def _params(params: dict[str, Any]) -> dict[str, Any]:
+    """The variant's parameters; ``TypeError`` (Python's, for an unexpected keyword) names any it does not take."""
     for name, where in _MAKE_TIME.items():
         if name in params:
-            raise ValueError(f"{name} is chosen when making the env, not when defining a variant: pass it to {where}")
+            raise TypeError(
+                f"register_variant() got an unexpected keyword argument {name!r}: it is chosen when making the "
+                f"env, not when defining a variant; pass it to {where}"
+            )
     if "max_episode_steps" in params:
-        raise ValueError(
-            "a variant's episode length is max_steps (its spec's max_episode_steps is set from it); "
+        raise TypeError(
+            "register_variant() got an unexpected keyword argument 'max_episode_steps': a variant's episode "
+            "length is max_steps (its spec's max_episode_steps is set from it); "
             f"pass max_steps={params['max_episode_steps']!r}"
         )
-    unknown = sorted(set(params) - set(PARAMETERS))
-    if unknown:
-        raise ValueError(
-            f"unknown parameter(s) {unknown}; a variant takes actions, variables and the parameters {list(PARAMETERS)}"
-        )
+    check_keywords("register_variant", params, ["id", "actions", "variables", "replace", *PARAMETERS])
     return dict(params)

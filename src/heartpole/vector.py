@@ -76,7 +76,9 @@ class HeartPoleVectorEnv(VectorEnv):
         if autoreset_mode not in modes and autoreset_mode not in [m.value for m in modes]:
             raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, got {autoreset_mode!r}")
         max_steps = episode_length(max_steps, max_episode_steps, max_steps_wins=True)
-        self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
+        self.dynamics = build_dynamics(
+            heart_attack_proclivity, max_steps, actions, variables, model_params, "HeartPoleVectorEnv.__init__"
+        )
         self.num_envs = int(num_envs)
         self.max_steps = int(max_steps)
         self.render_mode = render_mode

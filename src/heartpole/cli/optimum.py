@@ -82,7 +82,7 @@ def run_optimum(args: argparse.Namespace) -> int:
             solution = optimum.solve(args.env, grid=args.grid, **kwargs)
         if args.out:
             solution.save(args.out)
-    except (ValueError, OSError) as error:
+    except (ValueError, TypeError, OSError) as error:  # TypeError: a --param the env does not take
         raise CommandError(" ".join(str(error).split())) from None
     checks = _check(args, kwargs) if args.check else {}
     if args.json:

@@ -20,6 +20,7 @@ import math
 import os
 import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -40,10 +41,11 @@ CACHE_DIR_VARIABLE = "HEARTPOLE_JAX_CACHE"
 """Environment variable naming the persistent compilation cache's folder (default: the user's cache)."""
 
 
-def enable_compilation_cache(folder: str | os.PathLike[str] | None = None) -> Path:
+def enable_compilation_cache(folder: str | os.PathLike[str] | None = None) -> Path | None:
     """Keep compiled code on disk across runs (JAX's persistent compilation cache); return its folder.
 
     Default: ``$HEARTPOLE_JAX_CACHE``, else ``$XDG_CACHE_HOME/heartpole/jax`` (``~/.cache/heartpole/jax``).
+    Where that folder cannot be made (no writable home), JAX compiles in memory: one warning, and ``None``.
     """
     if folder is None:
         folder = (
@@ -51,7 +53,16 @@ def enable_compilation_cache(folder: str | os.PathLike[str] | None = None) -> Pa
             or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "heartpole" / "jax"
         )
     path = Path(folder)
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        warnings.warn(
+            f"JAX compiles in memory, again in every run: cannot make its cache folder ({error}). "
+            f"Set {CACHE_DIR_VARIABLE} to a writable folder to keep compiled code.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return None
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
