@@ -323,10 +323,11 @@ def baseline_standings(env_id: str, steps: int, episodes: int, seed: int) -> lis
 def standings(you: Standing, baselines: Sequence[Standing]) -> list[Standing]:
     """The player's row beside ``baselines``, best expected-risk return first (the player last among equals).
 
-    >>> you = Standing("you", -1.0, 0.3, None, 0, 0.3)
-    >>> baselines = [Standing("a", 0.5, 0.5, None, 0, 0.5), Standing("b", -2.0, 0.2, None, 0, 0.2)]
-    >>> [row.name for row in standings(you, baselines)]
-    ['a', 'you', 'b']
+    Examples:
+        >>> you = Standing("you", -1.0, 0.3, None, 0, 0.3)
+        >>> baselines = [Standing("a", 0.5, 0.5, None, 0, 0.5), Standing("b", -2.0, 0.2, None, 0, 0.2)]
+        >>> [row.name for row in standings(you, baselines)]
+        ['a', 'you', 'b']
     """
     return sorted([*baselines, you], key=lambda row: -row.expected_return)
 

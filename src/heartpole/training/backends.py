@@ -83,7 +83,8 @@ def train(
         ray: run the seeds as Ray Tune trials (sb3 backend, ``seeds`` given), on the cluster at ``address``
             (``None``: Ray on this machine) with ``cpus_per_trial`` CPUs each; see
             :func:`heartpole.scale.train_seeds_ray`.
-        eval_episodes, eval_seed: the evaluation of each saved model.
+        eval_episodes: episodes of the evaluation of each saved model.
+        eval_seed: the seed of that evaluation.
         progress: show a progress bar.
         on_run: called with each seed's summary as it finishes (with ``seeds``).
         on_compiled: jax backend: called with the compile time in seconds before training starts.
