@@ -47,6 +47,16 @@ def test_metadata_names_authors_and_classifiers(project: dict) -> None:
     assert not any(c.startswith("License ::") for c in project["classifiers"])  # SPDX replaces them
 
 
+def test_no_metadata_names_an_address_that_is_not_the_projects(project: dict) -> None:
+    """The project has no public URL or contact address: no [project.urls], no e-mail, and nothing anywhere
+    in the metadata the package writes (pyproject, the datasets' Minari metadata) names pypi.org, whose
+    ``heartpole`` is another package."""
+    assert "urls" not in project
+    assert not any("email" in author for author in project["authors"])
+    assert "pypi.org" not in PYPROJECT.read_text()
+    assert "pypi.org" not in SOURCES
+
+
 def test_the_version_has_one_source(project: dict) -> None:
     assert "version" not in project and "version" in project["dynamic"]
     setuptools = tomllib.loads(PYPROJECT.read_text())["tool"]["setuptools"]

@@ -44,8 +44,8 @@ from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
 from heartpole.policies import Policy, env_dynamics, load_policy, policy_name, quiet_version_warnings
 
 AUTHOR = "HeartPole contributors"
-AUTHOR_EMAIL = "https://pypi.org/project/heartpole/"
-CODE_PERMALINK = "https://pypi.org/project/heartpole/"
+"""The datasets' author. The project has no public address or e-mail of its own, so the datasets name none:
+Minari's ``author_email`` and ``code_permalink`` are optional and left out."""
 DEFAULT_EPISODES = 1000
 RECORD_NUM_ENVS = 1000
 """Episodes recorded side by side by default; each chunk is written before the next is run, so memory stays
@@ -177,8 +177,6 @@ def record_dataset(
         "eval_env": env_id,
         "algorithm_name": f"heartpole behaviour: {name}",
         "author": AUTHOR,
-        "author_email": AUTHOR_EMAIL,
-        "code_permalink": CODE_PERMALINK,
         "ref_min_score": low,
         "ref_max_score": high,
         "num_episodes_average_score": REFERENCE_EPISODES,
