@@ -14,7 +14,7 @@ import pytest
 from gymnasium.error import ResetNeeded
 
 import heartpole
-from heartpole.env import LOG_MAX_STEPS
+from heartpole.env import LOG_MAX_STEPS, RESET_INFO
 
 NAMES = ["alertness", "hypertension", "intoxication", "time_since_slept", "time_elapsed", "work_done"]
 
@@ -66,7 +66,7 @@ def test_spaces_are_the_tutorials_in_float32_without_precision_warning() -> None
 def test_reset_wakes_up_with_everything_else_at_zero() -> None:
     env = heartpole.HeartPole()
     obs, info = env.reset(seed=1)
-    assert obs.dtype == np.float32 and obs in env.observation_space and info == {}
+    assert obs.dtype == np.float32 and obs in env.observation_space and info == RESET_INFO
     assert 0.7 <= obs[0] <= 1.3 and not obs[1:].any()
 
 
@@ -76,7 +76,7 @@ def test_step_returns_gymnasium_five_tuple_and_info() -> None:
     obs, reward, terminated, truncated, info = env.step(1)
     assert obs in env.observation_space and obs.dtype == np.float32
     assert isinstance(reward, float) and terminated is False and truncated is False
-    assert info["action"] == "drink_coffee" and isinstance(info["heart_attack"], bool)
+    assert info["action"] == 1 and env.action_names[1] == "drink_coffee" and isinstance(info["heart_attack"], bool)
     assert 0 < info["heart_attack_risk"] < 0.5
     assert info["productivity"] == pytest.approx(info["score"])  # one half-hour worked so far
     assert env.state["time_elapsed"] == 1.0 and env.state["time_since_slept"] == 1.0
@@ -89,7 +89,7 @@ def test_sleep_takes_sixteen_half_hours_and_wakes_up() -> None:
     before = env.state
     _, _, _, _, info = env.step(3)
     after = env.state
-    assert info["action"] == "sleep"
+    assert info["action"] == 3
     assert after["time_elapsed"] == before["time_elapsed"] + 17
     assert after["time_since_slept"] == 1.0
     if not info["heart_attack"]:
@@ -310,3 +310,50 @@ def test_stable_baselines3_env_checker_passes_without_warnings() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(heartpole.HeartPole(), warn=True)
+
+
+def test_reset_info_has_the_step_infos_keys_and_types() -> None:
+    """``reset``'s info is a step's, with the values before any step: tools that record infos see one shape."""
+    env = heartpole.HeartPole()
+    _, info = env.reset(seed=0)
+    stepped = env.step(2)[4]
+    assert info == dict(RESET_INFO) and info is not RESET_INFO
+    assert {key: type(value) for key, value in info.items()} == {key: type(value) for key, value in stepped.items()}
+    assert stepped["action"] == 2 and env.action_names[stepped["action"]] == "drink_beer"
+    assert env.action_names == tuple(action.name for action in env.actions)
+
+
+def test_minaris_data_collector_records_infos(tmp_path, monkeypatch) -> None:
+    """Minari's own ``DataCollector(record_infos=True)`` over ``gym.make("HeartPole-v0")`` (it checks that every
+    step's info has reset's structure) records episodes whose infos hold the env's values."""
+    minari = pytest.importorskip("minari")
+    pytest.importorskip("jax")  # DataCollector's episode buffer needs it (minari[create])
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    env = minari.DataCollector(gym.make("HeartPole-v0", max_steps=5, max_episode_steps=5), record_infos=True)
+    rng, taken, risks = np.random.default_rng(0), [], []
+    for episode in range(3):
+        env.reset(seed=episode)
+        truncated = False
+        while not truncated:
+            taken.append(int(rng.integers(4)))
+            *_, truncated, info = env.step(taken[-1])
+            risks.append(info["heart_attack_risk"])
+    dataset = env.create_dataset(
+        "heartpole/v0/infos-test-v0",
+        eval_env="HeartPole-v0",
+        algorithm_name="random",
+        author="HeartPole's tests",
+        author_email="tests@example.org",
+        description="Three random episodes of five steps.",
+        ref_min_score=0.0,
+        ref_max_score=1.0,
+    )
+    env.close()
+    episodes = list(minari.load_dataset("heartpole/v0/infos-test-v0").iterate_episodes())
+    assert dataset.total_episodes == len(episodes) == 3
+    for i, episode in enumerate(episodes):
+        assert sorted(episode.infos) == sorted(RESET_INFO)
+        assert episode.infos["action"].tolist() == [-1, *taken[5 * i : 5 * i + 5]]  # reset's -1, then the indices
+        np.testing.assert_array_equal(episode.infos["action"][1:], episode.actions)
+        np.testing.assert_allclose(episode.infos["heart_attack_risk"][1:], risks[5 * i : 5 * i + 5])
+        assert episode.infos["productivity"][0] == 0 and episode.infos["productivity"][1:].all()

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 from typing import Any
 
 import gymnasium as gym
@@ -15,7 +16,7 @@ from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
-from heartpole.model import Params, Variable, check_keywords
+from heartpole.model import Params, Variable, check_keywords, score
 
 CONSTRUCTOR_KEYWORDS = (
     "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps"
@@ -24,6 +25,19 @@ CONSTRUCTOR_KEYWORDS = (
 
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
+
+NO_ACTION = -1
+"""``info["action"]`` before any step (in ``reset``'s ``info``): no action taken yet."""
+
+RESET_INFO: Mapping[str, Any] = MappingProxyType({
+    "action": NO_ACTION,
+    "heart_attack": False,
+    "heart_attack_risk": 0.0,  # no coin flipped yet
+    "productivity": 0.0,  # no work done yet
+    "score": float(score(0.0, 0.0)),
+})
+"""``reset``'s ``info``: a step's keys with their values before any step, of the same Python types, so
+that tools which record infos (Minari's ``DataCollector``, TorchRL's specs) see one structure throughout."""
 
 
 def observation_space(dynamics: Dynamics) -> spaces.Box:
@@ -146,9 +160,13 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     ``OrderEnforcing`` and ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
 
     ## Info
-    ``action`` (the action's name), ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the
-    coin was flipped with, used by the expected-risk estimate), ``productivity`` (this half-hour's work)
-    and ``score`` (``work_done / time_elapsed``).
+    ``action`` (the index of the action taken, an int; ``env.unwrapped.action_names[i]`` is its name),
+    ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the coin was flipped with, used by the
+    expected-risk estimate), ``productivity`` (this half-hour's work) and ``score`` (``work_done /
+    time_elapsed``). ``reset`` returns the same keys with the same types and their values before any step
+    (:data:`heartpole.env.RESET_INFO`): ``action`` -1 (none yet), ``heart_attack`` False and 0.0 for the
+    others, so tools that record infos (Minari's ``DataCollector(record_infos=True)``, TorchRL) see one
+    structure throughout.
 
     ## Rendering
     ``"ansi"`` returns the tutorial's log of the steps since the last render (action names, HEART ATTACK
@@ -181,6 +199,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
       five), so a seed gives another trajectory than in 0.1, with the same distribution.
     * v0, package 0.3: same dynamics; the step is compiled (numba) in float32 with a counter-based random
       number generator, so a seed gives another trajectory than in 0.2, with the same distribution.
+      ``info["action"]`` is the action's index (it was its name); ``reset``'s ``info`` has a step's keys
+      (it was empty).
     """
 
     metadata = {"render_modes": ["human", "ansi", "rgb_array"], "render_fps": 8}
@@ -210,7 +230,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._num_actions = len(self._action_names)
         self._packed, self._layout = self.dynamics.packed, self.dynamics.layout[:2]
         self._steps = 0
-        self._last_action: str | None = None
+        self._last_action: int | None = None
         self._last_attack = False
         self._heart_attacks = 0
         self._log: deque[tuple[str, tuple[float, ...], bool]] = deque(maxlen=LOG_MAX_STEPS)
@@ -220,6 +240,11 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     def actions(self) -> tuple[Action, ...]:
         """The action set, in action-index order."""
         return self.dynamics.actions
+
+    @property
+    def action_names(self) -> tuple[str, ...]:
+        """The actions' names, in action-index order: ``action_names[info["action"]]`` names a step's action."""
+        return self._action_names
 
     @property
     def state(self) -> dict[str, float]:
@@ -246,7 +271,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._log.clear()
         if self.render_mode == "human":
             self.render()
-        return self._state.copy(), {}
+        return self._state.copy(), dict(RESET_INFO)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
@@ -256,11 +281,10 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             raise ResetNeeded("call reset() before step() in HeartPole")
         reward, worked, risk, attack, new_score = kernel.step_one(state, index, self._rng, self._packed, self._layout)
         self._steps += 1
-        name = self._action_names[index]
         if self.render_mode is not None:
-            self._remember(name, attack)
+            self._remember(index, attack)
         info = {
-            "action": name,
+            "action": index,
             "heart_attack": attack,
             "heart_attack_risk": risk,
             "productivity": worked,
@@ -276,7 +300,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         if self.render_mode == "rgb_array":
             return rendering.draw_frame(
                 self.state,
-                action=self._last_action,
+                action=None if self._last_action is None else self._action_names[self._last_action],
                 heart_attack=self._last_attack,
                 heart_attacks=self._heart_attacks,
                 step=self._steps,
@@ -293,13 +317,14 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         return text
 
     # ----------------------------------------------------------------------------------------------------
-    def _remember(self, name: str, attack: bool) -> None:
+    def _remember(self, index: int, attack: bool) -> None:
         """Keep what rendering shows of the last step: the action, the heart attack and the text log."""
-        self._last_action, self._last_attack = name, attack
+        self._last_action, self._last_attack = index, attack
         self._heart_attacks += attack
         if self.render_mode in ("ansi", "human"):
             assert self._state is not None  # step() checked it
-            self._log.append((name, tuple(self._state.tolist()), attack))  # formatted only when rendered
+            state = tuple(self._state.tolist())
+            self._log.append((self._action_names[index], state, attack))  # formatted only when rendered
             if self.render_mode == "human":
                 self.render()
 

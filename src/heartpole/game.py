@@ -92,7 +92,7 @@ class Game:
         self.heart_attacks += bool(info["heart_attack"])
         self.risk_taken += float(info["heart_attack_risk"])
         self.score = float(info["score"])
-        self.actions.append(str(info["action"]))
+        self.actions.append(self.heartpole.action_names[info["action"]])
         return info
 
     def status(self, max_steps: int) -> list[str]:
@@ -254,7 +254,7 @@ def play_turns(game: Game, reader: KeyReader, steps: int, out: TextIO) -> bool:
             continue
         out.write(key + "\n")
         info = game.take(game.keys[key])
-        action = str(info["action"]).replace("_", " ")
+        action = game.actions[-1].replace("_", " ")
         out.write(f"You chose {action}; this half-hour earned {info['productivity']:.2f}.\n")
         if info["heart_attack"]:
             alarm = f"*** HEART ATTACK! *** -{game.penalty:g}. Your blood pressure is back to 0."
