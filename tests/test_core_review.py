@@ -206,7 +206,7 @@ def test_same_step_final_obs_is_the_single_envs_last_observation(max_steps) -> N
     assert truncated.all() and ended
     assert np.array_equal(info["final_obs"][0], last) and rewards[0] == np.float32(reward)
     assert info["final_info"]["score"][0] == np.float32(single_info["score"])
-    assert not np.shares_memory(info["final_obs"], obs)
+    assert not np.shares_memory(info["final_obs"][0], obs)
 
 
 def test_returned_arrays_do_not_alias_the_vector_envs_buffers() -> None:
@@ -218,7 +218,7 @@ def test_returned_arrays_do_not_alias_the_vector_envs_buffers() -> None:
     returned = env.step(actions)
     envs, rng = env._envs.copy(), env._rng.copy()
     obs, reward, terminated, truncated, info = returned
-    arrays = [obs, reward, terminated, truncated, actions, info["final_obs"]]
+    arrays = [obs, reward, terminated, truncated, actions, *info["final_obs"]]
     arrays += [v for v in info.values() if isinstance(v, np.ndarray)]
     arrays += [v for v in info["final_info"].values() if isinstance(v, np.ndarray)]
     for array in arrays:

@@ -13,6 +13,8 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole
+from heartpole.env import RESET_INFO
+from heartpole.vector import INFO_DTYPES, INFO_KEYS
 
 
 def make(num_envs: int = 4, **kwargs) -> heartpole.HeartPoleVectorEnv:
@@ -57,7 +59,8 @@ def test_next_step_autoreset_restarts_an_env_on_the_step_after_truncation() -> N
     obs, reward, terminated, truncated, _ = env.step(np.array([1, 2, 0]))
     assert truncated.all() and not terminated.any() and obs[:, 4].min() >= 3
     obs, reward, terminated, truncated, info = env.step(np.array([3, 3, 3]))  # actions ignored
-    assert not truncated.any() and (reward == 0).all() and info == {}  # as reset() gives
+    assert not truncated.any() and (reward == 0).all()
+    assert all((info[k] == v).all() and info["_" + k].all() for k, v in RESET_INFO.items())  # reset()'s values
     assert (obs[:, 1:] == 0).all() and ((obs[:, 0] >= 0.7) & (obs[:, 0] <= 1.3)).all()
     obs, *_ = env.step(np.array([0, 0, 0]))
     assert (obs[:, 4] == 1).all()
@@ -69,11 +72,12 @@ def test_same_step_autoreset_reports_the_final_observation() -> None:
     env.reset(seed=2)
     env.step(np.array([0, 0]))
     obs, _, _, truncated, info = env.step(np.array([0, 1]))
-    assert truncated.all() and info["_final_obs"].all()
-    assert (info["final_obs"][:, 4] == 2).all()  # two half-hours worked
+    assert truncated.all() and info["_final_obs"].all() and info["final_obs"].dtype == object
+    assert [last[4] for last in info["final_obs"]] == [2, 2]  # two half-hours worked
     assert (obs[:, 4] == 0).all()  # already the next episode
-    assert info["final_info"]["score"].shape == (2,)
+    assert info["final_info"]["score"].shape == (2,) and info["final_info"]["_score"].all()
     np.testing.assert_array_equal(info["final_info"]["action"], [0, 1])
+    np.testing.assert_array_equal(info["action"], [-1, -1])  # the new episodes' reset() values
 
 
 def test_info_has_the_single_envs_keys_with_action_indices() -> None:
@@ -82,8 +86,10 @@ def test_info_has_the_single_envs_keys_with_action_indices() -> None:
     info = env.step(np.array([2, 0, 3]))[4]
     single = heartpole.HeartPole()
     single.reset(seed=0)
-    assert {k for k in info if not k.startswith("_")} == set(single.step(2)[4])
+    single_info = single.step(2)[4]
+    assert {k for k in info if not k.startswith("_")} == set(single_info) == set(RESET_INFO)
     np.testing.assert_array_equal(info["action"], [2, 0, 3])
+    assert single_info["action"] == 2 and env.action_names[info["action"][0]] == "drink_beer"
     assert all(info["_" + k].all() for k in info if not k.startswith("_"))
 
 
@@ -116,8 +122,8 @@ def test_step_before_reset_and_bad_construction() -> None:
         heartpole.HeartPoleVectorEnv(2).step(np.array([0, 0]))
     with pytest.raises(ValueError, match="num_envs"):
         heartpole.HeartPoleVectorEnv(0)
-    with pytest.raises(ValueError, match="autoreset_mode"):
-        heartpole.HeartPoleVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
+    with pytest.raises(ValueError, match="autoreset_mode must be one of .'NextStep', 'SameStep', 'Disabled'."):
+        heartpole.HeartPoleVectorEnv(2, autoreset_mode="disabled")
     with pytest.raises(ValueError, match="max_steps"):
         heartpole.HeartPoleVectorEnv(2, max_steps=0)
 
@@ -165,3 +171,249 @@ def test_same_step_autoreset_forgets_the_ended_episode_for_rendering(monkeypatch
     assert truncated[0]
     env.render()
     assert drawn[-1] == {**drawn[-1], "action": None, "heart_attack": False, "heart_attacks": 0, "step": 0}
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Gymnasium's vector contract, side by side with SyncVectorEnv over HeartPole's single env.
+#
+# SyncVectorEnv seeds sub-env i with seed + i and its autoresets draw new keys, where the native env keys env i
+# by the i-th draw of one generator and continues its counters through autoresets: with random dynamics the
+# two agree bit for bit on env 0's first episode only (tested below on v0). On a configuration whose
+# dynamics use no random number (no heart attacks, a fixed wake-up alertness, actions of fixed amounts) they
+# must agree exactly on everything, through any autoresets and masked resets: that tests the semantics.
+STEADY = {
+    "heart_attack_proclivity": 0.0,
+    "wake_alertness": (1.0, 1.0),
+    "actions": [
+        heartpole.Action("do_nothing"),
+        heartpole.Action("fixed_coffee", {"alertness": (0.5, 0.5), "hypertension": (0.3, 0.3)}),
+        heartpole.Action("fixed_beer", {"alertness": (-0.25, -0.25), "intoxication": (0.02, 0.02)}),
+        heartpole.Action("sleep", sleeps=True),
+    ],
+}
+MODES = list(AutoresetMode)
+
+
+def twins(num_envs: int, mode: AutoresetMode, **kwargs) -> tuple[heartpole.HeartPoleVectorEnv, gym.vector.VectorEnv]:
+    """The native vector env and SyncVectorEnv over the single env, alike."""
+    native = heartpole.HeartPoleVectorEnv(num_envs, autoreset_mode=mode, **kwargs)
+    sync = gym.vector.SyncVectorEnv([lambda: heartpole.HeartPole(**kwargs)] * num_envs, autoreset_mode=mode)
+    return native, sync
+
+
+def assert_same_info(ours: dict, theirs: dict) -> None:
+    """The same keys, masks and values (every entry, masked or not; values of the same kind: the native env
+    keeps float32 and int32 where SyncVectorEnv batches Python numbers as float64 and int64)."""
+    assert sorted(ours) == sorted(theirs)
+    for key, expected in theirs.items():
+        if key == "final_obs":  # object arrays: the last observations, None elsewhere
+            assert ours[key].dtype == object and len(ours[key]) == len(expected)
+            for mine, last in zip(ours[key], expected):
+                assert (mine is None) == (last is None)
+                if last is not None:
+                    assert mine.dtype == last.dtype and np.array_equal(mine, last)
+        elif isinstance(expected, dict):
+            assert_same_info(ours[key], expected)
+        else:
+            assert ours[key].shape == expected.shape and ours[key].dtype.kind == expected.dtype.kind, key
+            np.testing.assert_array_equal(ours[key], expected, err_msg=key)
+
+
+def assert_same(ours: tuple, theirs: tuple) -> None:
+    """Two ``reset`` or ``step`` results alike: observations, rewards, flags and infos."""
+    assert len(ours) == len(theirs)
+    for mine, expected in zip(ours[:-1], theirs[:-1]):
+        assert mine.shape == expected.shape and mine.dtype.kind == expected.dtype.kind
+        np.testing.assert_array_equal(mine, expected)
+    assert_same_info(ours[-1], theirs[-1])
+
+
+def random_mask(rng: np.random.Generator, num_envs: int, share: float) -> np.ndarray:
+    """A random reset mask with at least one True."""
+    mask = rng.random(num_envs) < share
+    mask[rng.integers(num_envs)] = True
+    return mask
+
+
+@pytest.mark.parametrize("mode", MODES, ids=[m.name for m in MODES])
+@pytest.mark.parametrize("seed", range(3))
+def test_every_autoreset_mode_and_masked_reset_matches_sync_vector_env(mode: AutoresetMode, seed: int) -> None:
+    """Random actions and random masked resets (with and without seeds), 120 steps of episodes of 4: the
+    native env answers everything as SyncVectorEnv does, in every autoreset mode."""
+    num_envs, rng = 5, np.random.default_rng(seed)
+    native, sync = twins(num_envs, mode, max_steps=4, **STEADY)
+    assert native.metadata["autoreset_mode"] == sync.metadata["autoreset_mode"] == mode
+    assert_same(native.reset(seed=seed), sync.reset(seed=seed))
+    truncated = np.zeros(num_envs, dtype=bool)
+    masked_resets = ended_resets = 0
+    for _ in range(120):
+        must = truncated if mode == AutoresetMode.DISABLED else np.zeros(num_envs, dtype=bool)
+        if must.any() or rng.random() < 0.15:
+            mask = must | random_mask(rng, num_envs, 0.3) if rng.random() < 0.5 or not must.any() else must
+            reset_seed = None if rng.random() < 0.5 else int(rng.integers(100))
+            ours = native.reset(seed=reset_seed, options={"reset_mask": mask.copy()})
+            assert_same(ours, sync.reset(seed=reset_seed, options={"reset_mask": mask.copy()}))
+            masked_resets += 1
+        actions = rng.integers(0, 4, num_envs)
+        ours = native.step(actions)
+        assert_same(ours, sync.step(actions))
+        truncated = ours[3]
+        ended_resets += truncated.sum()
+    assert masked_resets >= 10 and ended_resets >= 20  # both paths were taken, often
+
+
+@pytest.mark.parametrize("mode", MODES, ids=[m.name for m in MODES])
+def test_env_0s_first_episode_on_v0_is_sync_vector_envs_bit_for_bit(mode: AutoresetMode) -> None:
+    """The real, random v0: env 0 (seeded alike in both) agrees bit for bit until its episode ends, the last
+    observation and info too (SAME_STEP's ``final_obs``/``final_info``), and every info has the same keys."""
+    max_steps, rng = 60, np.random.default_rng(1)
+    native, sync = twins(3, mode, max_steps=max_steps, heart_attack_proclivity=1.0)
+    ours, theirs = native.reset(seed=11), sync.reset(seed=11)
+    np.testing.assert_array_equal(ours[0][0], theirs[0][0])
+    attacks = 0
+    for t in range(max_steps):
+        actions = rng.choice(4, size=3, p=[0.04, 0.9, 0.03, 0.03])  # mostly coffee: heart attacks happen
+        ours, theirs = native.step(actions), sync.step(actions)
+        if t < max_steps - 1 or mode != AutoresetMode.SAME_STEP:
+            np.testing.assert_array_equal(ours[0][0], theirs[0][0])
+        for mine, expected in zip(ours[1:4], theirs[1:4]):
+            assert mine[0] == expected[0]
+        assert sorted(ours[4]) == sorted(theirs[4])
+        for key in INFO_KEYS:
+            assert ours[4][key][0] == theirs[4][key][0]
+        attacks += theirs[4]["heart_attack"][0]
+    assert ours[3].all() and attacks > 0  # the episode ended; the coin was flipped with and came up
+    if mode == AutoresetMode.SAME_STEP:
+        np.testing.assert_array_equal(ours[4]["final_obs"][0], theirs[4]["final_obs"][0])
+        for key in INFO_KEYS:
+            assert ours[4]["final_info"][key][0] == theirs[4]["final_info"][key][0]
+
+
+BAD_MASKS = [[True] * 4, np.ones(3, dtype=bool), np.ones((4, 1), dtype=bool), np.ones(4, dtype=int), np.zeros(4, bool)]
+
+
+@pytest.mark.parametrize("mask", BAD_MASKS, ids=["list", "short", "2d", "ints", "none"])
+def test_a_bad_reset_mask_is_refused_as_gymnasium_refuses_it_and_changes_nothing(mask) -> None:
+    native, sync = twins(4, AutoresetMode.NEXT_STEP, max_steps=5)
+    native.reset(seed=0)
+    sync.reset(seed=0)
+    native.step(np.array([1, 2, 3, 0]))
+    untouched = copy.deepcopy(native)
+    with pytest.raises((TypeError, ValueError)) as expected:
+        sync.reset(options={"reset_mask": mask})
+    with pytest.raises(expected.type) as raised:
+        native.reset(seed=3, options={"reset_mask": mask})
+    assert str(raised.value) == str(expected.value)
+    np.testing.assert_array_equal(native.state, untouched.state)
+    assert native.np_random.bit_generator.state == untouched.np_random.bit_generator.state
+    actions = np.array([3, 2, 1, 0])
+    assert native.step(actions)[0].tobytes() == untouched.step(actions)[0].tobytes()
+
+
+def test_a_masked_reset_draws_the_keys_a_full_reset_gives_and_leaves_the_other_envs_alone() -> None:
+    """v0: envs reset by mask with seed s start as after ``reset(seed=s)``; the others go on bit for bit, as
+    if nothing had happened, and the options the caller passed are left as they were."""
+    rng = np.random.default_rng(2)
+    actions = rng.integers(0, 4, (40, 4))
+    plain, masked = make(4, max_steps=25), make(4, max_steps=25)
+    first, _ = plain.reset(seed=5)
+    masked.reset(seed=5)
+    for a in actions[:10]:
+        plain.step(a)
+        masked.step(a)
+    mask = np.array([False, True, False, True])
+    options = {"reset_mask": mask, "other": 1}
+    obs, info = masked.reset(seed=5, options=options)
+    assert options == {"reset_mask": mask, "other": 1} and mask.tolist() == [False, True, False, True]
+    np.testing.assert_array_equal(obs[mask], first[mask])  # the keys reset(seed=5) drew for envs 1 and 3
+    for key in INFO_KEYS:
+        np.testing.assert_array_equal(info["_" + key], mask)
+        assert (info[key][mask] == RESET_INFO[key]).all()
+    fresh = make(4, max_steps=25)
+    fresh.reset(seed=5)
+    ended = np.zeros(4, dtype=bool)
+    for a in actions[10:]:  # through the unmasked envs' autoreset at step 25 and the masked ones' at 35
+        out, again, new = plain.step(a), masked.step(a), fresh.step(a)
+        np.testing.assert_array_equal(again[0][~mask], out[0][~mask])
+        np.testing.assert_array_equal(again[0][mask], new[0][mask])
+        np.testing.assert_array_equal(again[3], np.where(mask, new[3], out[3]))
+        ended |= again[3]
+    assert ended.all()
+
+
+def test_next_step_restarts_some_envs_while_the_others_step_as_when_all_restart_together() -> None:
+    """v0: an env whose episode ended restarts on the next step with the same random numbers whether the
+    other envs step meanwhile (their episodes were reset later) or restart with it."""
+    rng = np.random.default_rng(3)
+    together, apart, late = make(3, max_steps=6), make(3, max_steps=6), make(3, max_steps=6)
+    for env in (together, apart, late):
+        env.reset(seed=9)
+    ended = []
+    for step in range(16):
+        actions = rng.integers(0, 4, 3)
+        if step == 2:  # env 2 starts a new episode, 2 steps after envs 0 and 1 (all of them, in `late`)
+            apart.reset(options={"reset_mask": np.array([False, False, True])})
+            late.reset(options={"reset_mask": np.array([True, True, True])})  # the same key for env 2
+        out, again, later = together.step(actions), apart.step(actions), late.step(actions)
+        for i, reference in ((0, out), (1, out), (2, later)):
+            assert again[0][i].tobytes() == reference[0][i].tobytes() and again[1][i] == reference[1][i]
+            assert again[3][i] == reference[3][i]
+        ended.append(again[3].tolist())
+    # envs 0 and 1 restarted at step 6 while env 2 stepped, and env 2 at step 8 while they stepped
+    assert [step for step, flags in enumerate(ended) if any(flags)] == [5, 7, 12, 14]
+
+
+def test_disabled_autoreset_refuses_to_step_an_ended_episode_until_it_is_reset() -> None:
+    native, sync = twins(3, AutoresetMode.DISABLED, max_steps=2, **STEADY)
+    native.reset(seed=0)
+    sync.reset(seed=0)
+    for _ in range(2):
+        *_, truncated, _ = native.step(np.array([1, 1, 1]))
+        sync.step(np.array([1, 1, 1]))
+    assert truncated.all()
+    untouched = copy.deepcopy(native)
+    with pytest.raises(AssertionError):
+        sync.step(np.array([0, 0, 0]))
+    with pytest.raises(heartpole.vector.EpisodeEndedError, match=r"envs \[0, 1, 2\] have ended.*reset_mask"):
+        native.step(np.array([0, 0, 0]))
+    assert issubclass(heartpole.vector.EpisodeEndedError, (AssertionError, gym.error.ResetNeeded))
+    np.testing.assert_array_equal(native.state, untouched.state)
+    np.testing.assert_array_equal(native._rng, untouched._rng)
+    native.reset(options={"reset_mask": np.array([True, True, False])})
+    with pytest.raises(heartpole.vector.EpisodeEndedError, match=r"envs \[2\]"):
+        native.step(np.array([0, 0, 0]))
+    native.reset(options={"reset_mask": np.array([False, False, True])})
+    assert not native.step(np.array([0, 0, 0]))[3].any()
+
+
+def test_same_step_counts_an_episodes_last_step_once() -> None:
+    """Summing the top-level ``heart_attack`` and ``productivity`` over the steps, and reading ``final_info``
+    for the episodes' last steps (as SyncVectorEnv's users do), counts every step once."""
+    n, max_steps = 256, 20
+    env = heartpole.HeartPoleVectorEnv(
+        n, max_steps=max_steps, heart_attack_proclivity=1.0, autoreset_mode=AutoresetMode.SAME_STEP
+    )
+    reference = heartpole.HeartPoleVectorEnv(n, max_steps=max_steps, heart_attack_proclivity=1.0)  # NEXT_STEP
+    env.reset(seed=4)
+    reference.reset(seed=4)
+    coffee = np.ones(n, dtype=int)
+    totals, expected = np.zeros(2), np.zeros(2)
+    for _ in range(max_steps):
+        info, seen = env.step(coffee)[4], reference.step(coffee)[4]
+        totals += info["heart_attack"].sum(), info["productivity"].sum()
+        expected += seen["heart_attack"].sum(), seen["productivity"].sum()
+    final = info["final_info"]
+    totals += final["heart_attack"].sum(), final["productivity"].sum()
+    np.testing.assert_array_equal(totals, expected)
+    assert expected[0] > 0 and final["heart_attack"].any()  # heart attacks happened, on the last step too
+    assert (info["action"] == -1).all() and (info["productivity"] == 0).all()  # the new episodes' reset values
+
+
+def test_reset_info_has_the_step_infos_keys_and_dtypes() -> None:
+    env = make(3)
+    obs, info = env.reset(seed=0)
+    stepped = env.step(np.array([0, 1, 2]))[4]
+    assert sorted(info) == sorted(stepped) == sorted([*INFO_KEYS, *("_" + k for k in INFO_KEYS)])
+    for key in INFO_KEYS:
+        assert info[key].dtype == stepped[key].dtype == INFO_DTYPES[key] and info["_" + key].all()
+        assert (info[key] == RESET_INFO[key]).all()

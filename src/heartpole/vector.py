@@ -16,11 +16,21 @@ from gymnasium.vector.utils import batch_space
 from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
-from heartpole.env import build_dynamics, check_render_mode, episode_length, observation_space
+from heartpole.env import RESET_INFO, build_dynamics, check_render_mode, episode_length, observation_space
 from heartpole.model import Variable, check_integer
 
-INFO_KEYS = ("action", "heart_attack", "heart_attack_risk", "productivity", "score")
-"""The keys of a step's ``info`` (each with its ``_key`` mask)."""
+INFO_KEYS = tuple(RESET_INFO)
+"""The keys of a step's and a reset's ``info`` (each with its ``_key`` mask): the single env's."""
+
+INFO_DTYPES = {"action": kernel.ACTION_DTYPE, **{key: kernel.OUTPUTS[key] for key in INFO_KEYS[1:]}}
+"""The dtypes of the ``info`` arrays, the same from ``step`` and ``reset``."""
+
+
+class EpisodeEndedError(ResetNeeded, AssertionError):
+    """``step`` in ``AutoresetMode.DISABLED`` while an env's episode has ended and it was not reset.
+
+    Gymnasium's ``SyncVectorEnv`` fails there with an ``AssertionError``, so this is one too (and a
+    ``gymnasium.error.ResetNeeded``, which says what to do)."""
 
 
 class HeartPoleVectorEnv(VectorEnv):
@@ -34,18 +44,35 @@ class HeartPoleVectorEnv(VectorEnv):
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
     Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
-    variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows. ``info`` holds arrays of
-    ``num_envs`` values (:data:`INFO_KEYS`: ``action``, the index of the action taken, where the single env
-    gives its name; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``), with
-    Gymnasium's ``_key`` masks (one shared mask array: every key is present for every env).
+    variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
 
-    Every episode starts at ``reset`` and is truncated after ``max_steps`` decisions, so all envs' episodes
-    end together. Autoreset: by default Gymnasium's ``NEXT_STEP`` mode: the call to ``step`` after the
-    episodes ended starts new ones, ignoring the actions, and returns the first observations with reward 0,
-    ``truncated=False`` and an empty ``info`` (as ``reset`` does). With
-    ``autoreset_mode=AutoresetMode.SAME_STEP`` the envs restart within the step that ends them; the last
-    observations and infos are then in ``info["final_obs"]`` and ``info["final_info"]`` (the mode
-    Stable-Baselines3's VecEnv expects).
+    ``info`` holds the single env's keys (:data:`INFO_KEYS`: ``action``, the index of the action taken,
+    ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
+    arrays of ``num_envs`` values (dtypes :data:`INFO_DTYPES`), with Gymnasium's ``_key`` masks. ``step``
+    reports every key for every env (one mask array shared by the keys). ``reset`` gives the same keys with
+    their values before any step (``action`` -1, the others 0 or False, as the single env's ``reset``), for
+    the envs it reset.
+
+    ``reset(options={"reset_mask": mask})`` resets only the envs where ``mask`` (a bool array of shape
+    ``(num_envs,)`` with at least one True; else ``TypeError`` or ``ValueError``, as Gymnasium's vector envs
+    raise) is True; the others go on untouched. Those drawn afresh take the 64-bit keys a full
+    ``reset(seed=...)`` with the same seed would give them (``num_envs`` draws from ``self.np_random``,
+    env ``i`` the ``i``-th); ``seed=None`` continues the generator.
+
+    Every episode is truncated after ``max_steps`` decisions (never terminated). Autoreset (Gymnasium's
+    ``AutoresetMode``, as ``SyncVectorEnv`` runs it over :class:`heartpole.HeartPole`):
+
+    * ``NEXT_STEP`` (default): the call to ``step`` after an env's episode ended starts a new one for that
+      env, ignoring its action: its first observation, reward 0, ``truncated=False`` and ``reset``'s info
+      values. The other envs step as usual.
+    * ``SAME_STEP``: an env restarts within the step that ends its episode (the mode Stable-Baselines3's
+      VecEnv expects). Its ``info["final_obs"]`` (an object array, ``None`` where no episode ended) holds the
+      last observation, ``info["final_info"]`` the last step's info (keys with their ``_key`` masks),
+      both masked by ``_final_obs`` and ``_final_info``; the top-level keys hold the new episode's
+      ``reset`` values, so the last step is counted once.
+    * ``DISABLED``: nothing restarts; reset the ended envs with ``reset(options={"reset_mask": truncated})``.
+      ``step`` before that raises :class:`EpisodeEndedError` (an ``AssertionError``, as ``SyncVectorEnv``'s)
+      and changes nothing.
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
 
@@ -72,9 +99,9 @@ class HeartPoleVectorEnv(VectorEnv):
     ) -> None:
         check_integer("num_envs", num_envs, 1)
         check_render_mode(render_mode, self.metadata["render_modes"])
-        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-        if autoreset_mode not in modes and autoreset_mode not in [m.value for m in modes]:
-            raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, got {autoreset_mode!r}")
+        if autoreset_mode not in list(AutoresetMode) and autoreset_mode not in [m.value for m in AutoresetMode]:
+            accepted = [m.value for m in AutoresetMode]
+            raise ValueError(f"autoreset_mode must be one of {accepted}, got {autoreset_mode!r}")
         max_steps = episode_length(max_steps, max_episode_steps, max_steps_wins=True)
         self.dynamics = build_dynamics(
             heart_attack_proclivity, max_steps, actions, variables, model_params, "HeartPoleVectorEnv.__init__"
@@ -82,7 +109,8 @@ class HeartPoleVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         self.max_steps = int(max_steps)
         self.render_mode = render_mode
-        self.metadata = {**self.metadata, "autoreset_mode": AutoresetMode(autoreset_mode)}
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.single_action_space = spaces.Discrete(len(self.dynamics.actions))
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.single_observation_space = observation_space(self.dynamics)
@@ -90,8 +118,12 @@ class HeartPoleVectorEnv(VectorEnv):
         self._envs = np.zeros((len(self.dynamics.variables), self.num_envs), dtype=np.float32)  # the states
         self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
         self._started = False
-        self._steps = 0  # every env's episode starts at reset and lasts max_steps: they end together
-        self._ended = False  # NEXT_STEP autoreset: the episodes ended on the last step
+        # Env i has taken `_clock - _starts[i]` steps of its episode; the earliest episode ends at `_next_end`,
+        # so a step tests one number, not an array, until an episode ends.
+        self._clock = 0
+        self._starts = np.zeros(self.num_envs, dtype=np.int64)
+        self._next_end = self.max_steps
+        self._ended: np.ndarray | None = None  # NEXT_STEP and DISABLED: envs whose episode ended, not restarted
         self._last_actions = np.full(self.num_envs, -1)
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
@@ -118,6 +150,11 @@ class HeartPoleVectorEnv(VectorEnv):
         self.__dict__["_spec"] = spec
 
     @property
+    def action_names(self) -> tuple[str, ...]:
+        """The actions' names, in action-index order: ``action_names[info["action"][i]]`` names env i's action."""
+        return tuple(action.name for action in self.dynamics.actions)
+
+    @property
     def state(self) -> np.ndarray:
         """The current states, ``(num_variables, num_envs)`` float32 (a copy)."""
         if not self._started:
@@ -127,62 +164,85 @@ class HeartPoleVectorEnv(VectorEnv):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Start every env afresh (fact 0, then waking up). ``options`` is accepted and unused."""
+        """Start every env afresh (fact 0, then waking up), or those of ``options["reset_mask"]``; other
+        ``options`` are accepted and unused. See the class docstring."""
+        mask = self._reset_mask(options)
+        if not self._started and not mask.all():
+            raise ResetNeeded("call reset() without a reset_mask first: the other envs have no episode yet")
         super().reset(seed=seed)
-        self._rng[:] = kernel.generator_states(self.np_random, self.num_envs)
-        self._started = True
-        self._restart()
-        return self._observations(), {}
+        keys = kernel.generator_states(self.np_random, self.num_envs)
+        if mask.all():
+            self._rng[:] = keys
+            self._clock, self._ended, self._started = 0, None, True
+        else:
+            self._rng[:, mask] = keys[:, mask]
+            self._ended = self._still_ended(~mask)
+        self._restart(mask)
+        info: dict[str, Any] = {}
+        for key, value in RESET_INFO.items():
+            info[key] = np.zeros(self.num_envs, dtype=INFO_DTYPES[key])
+            info[key][mask], info["_" + key] = value, mask.copy()
+        return self._observations(), info
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its action; see the class docstring for autoreset and ``info``."""
         action = self._validate(actions)
         if not self._started:
             raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
+        restart = self._ended
+        if restart is not None and self.autoreset_mode == AutoresetMode.DISABLED:
+            raise EpisodeEndedError(
+                f"the episodes of envs {np.flatnonzero(restart).tolist()} have ended and autoreset_mode is "
+                'DISABLED: reset them first, with reset(options={"reset_mask": mask})'
+            )
         n = self.num_envs
-        if self._ended:  # NEXT_STEP autoreset: every env starts afresh, ignoring its action
-            self._restart()
-            nothing = np.zeros(n, dtype=bool)
-            return self._observations(), np.zeros(n, dtype=np.float32), nothing, nothing.copy(), {}
         results = kernel.new_results(n)  # fresh: they go out as they are
-        kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
+        stepped = restart is None or not restart.all()
+        if stepped:
+            kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
         reward, worked, risk, attack, new_score = results
-        self._steps += 1
-        ended = self._steps >= self.max_steps
-        truncated, terminated = np.full(n, ended), np.zeros(n, dtype=bool)
         present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
         for key, value in zip(INFO_KEYS, (action, attack, risk, worked, new_score)):
             info[key], info["_" + key] = value, present
+        self._clock += 1
+        if restart is not None:  # NEXT_STEP autoreset: these envs start afresh instead of stepping
+            if stepped:  # the kernel stepped them too: their draw is given back, as if they had not stepped
+                self._rng[kernel.COUNTER, restart] -= np.uint32(1)
+            self._restart(restart)
+            reward[restart] = 0.0
+            _write_reset_values(info, restart)
         if self.render_mode is not None:  # copies: `action` and `attack` go out in info
-            self._last_actions, self._last_attacks = action.astype(np.int64), attack.copy()
+            self._last_actions[:], self._last_attacks[:] = action, attack
             self._heart_attacks += attack
+        ended = None if self._clock < self._next_end else self._clock - self._starts >= self.max_steps
         obs = self._observations()
-        if ended and self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
-            info["final_obs"], info["_final_obs"] = obs, truncated.copy()
-            info["final_info"] = {key: value for key, value in info.items() if not key.startswith(("final", "_final"))}
-            info["_final_info"] = truncated.copy()
-            self._restart()
+        if ended is not None and self.autoreset_mode == AutoresetMode.SAME_STEP:
+            info.update(_final_infos(info, obs, ended))
+            self._restart(ended)
+            _write_reset_values(info, ended)
             obs = self._observations()
+            ended, self._ended = ended.copy(), None
         else:
             self._ended = ended
-        return obs, reward, terminated, truncated, info
+        truncated = np.zeros(n, dtype=bool) if ended is None else ended.copy()
+        return obs, reward, np.zeros(n, dtype=bool), truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """With ``render_mode="rgb_array"``: one RGB frame per env, drawing its current state."""
         if self.render_mode is None or not self._started:
             return None
-        names = self.dynamics.names
+        names, action_names = self.dynamics.names, self.action_names
         frames = []
         for i in range(self.num_envs):
             last = int(self._last_actions[i])
             frames.append(
                 rendering.draw_frame(
                     dict(zip(names, self._envs[:, i].tolist())),
-                    action=self.dynamics.actions[last].name if last >= 0 else None,
+                    action=action_names[last] if last >= 0 else None,
                     heart_attack=bool(self._last_attacks[i]),
                     heart_attacks=int(self._heart_attacks[i]),
-                    step=self._steps,
+                    step=int(self._clock - self._starts[i]),
                     max_steps=self.max_steps,
                 )
             )
@@ -193,12 +253,37 @@ class HeartPoleVectorEnv(VectorEnv):
         """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s."""
         return self._envs.copy().T
 
-    def _restart(self) -> None:
-        """Start every env afresh; their random numbers go on from their counters."""
-        everyone = np.ones(self.num_envs, dtype=bool)
-        kernel.reset_envs(self._envs, self._rng, everyone, self.dynamics.packed, self.dynamics.layout)
-        self._steps, self._ended = 0, False
-        self._last_actions[:], self._last_attacks[:], self._heart_attacks[:] = -1, False, 0  # for rendering
+    def _restart(self, which: np.ndarray) -> None:
+        """Start the envs where ``which`` afresh; their random numbers go on from their generator states."""
+        kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
+        self._starts[which] = self._clock
+        self._next_end = int(self._starts.min()) + self.max_steps
+        self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
+
+    def _still_ended(self, kept: np.ndarray) -> np.ndarray | None:
+        """The ended episodes (:attr:`_ended`) among the envs ``kept``, or None if there are none."""
+        if self._ended is None:
+            return None
+        ended = self._ended & kept
+        return ended if ended.any() else None
+
+    def _reset_mask(self, options: dict[str, Any] | None) -> np.ndarray:
+        """``options["reset_mask"]`` checked as Gymnasium's vector envs check it, or every env."""
+        if options is None or "reset_mask" not in options:
+            return np.ones(self.num_envs, dtype=bool)
+        mask = options["reset_mask"]
+        if not isinstance(mask, np.ndarray):
+            raise TypeError(f"`options['reset_mask']` must be a numpy array, got {type(mask)}")
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"`options['reset_mask']` must have shape `({self.num_envs},)`, got {mask.shape}")
+        if mask.dtype != np.bool_:
+            raise TypeError(f"`options['reset_mask']` must have `dtype=np.bool_`, got {mask.dtype}")
+        if not mask.any():
+            raise ValueError(
+                "`options['reset_mask']` must contain a boolean array with at least one True value, "
+                f"got reset_mask={mask}"
+            )
+        return mask.copy()
 
     def _validate(self, actions: Any) -> np.ndarray:
         """The actions as the kernel's index array (a copy), or ``ValueError`` naming what is wrong and what
@@ -216,3 +301,23 @@ class HeartPoleVectorEnv(VectorEnv):
                 f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
             )
         return array.astype(kernel.ACTION_DTYPE)
+
+
+def _write_reset_values(info: dict[str, Any], which: np.ndarray) -> None:
+    """Put ``reset``'s info values into ``info``'s arrays for the envs ``which`` (restarted in the step)."""
+    for key, value in RESET_INFO.items():
+        info[key][which] = value
+
+
+def _final_infos(info: dict[str, Any], obs: np.ndarray, ended: np.ndarray) -> dict[str, Any]:
+    """SAME_STEP's ``final_obs`` and ``final_info`` for the envs ``ended``, laid out as Gymnasium's vector
+    envs lay them out: an object array of the last observations (``None`` elsewhere) and the last step's
+    ``info`` arrays (0 elsewhere), each with its own mask."""
+    final_obs = np.full(len(ended), None, dtype=object)
+    for i, row in zip(np.flatnonzero(ended), np.ascontiguousarray(obs[ended])):
+        final_obs[i] = row
+    final_info: dict[str, Any] = {}
+    for key in INFO_KEYS:
+        final_info[key] = np.where(ended, info[key], np.zeros((), dtype=info[key].dtype))
+        final_info["_" + key] = ended.copy()
+    return {"final_obs": final_obs, "_final_obs": ended.copy(), "final_info": final_info, "_final_info": ended.copy()}

@@ -123,7 +123,10 @@ class HeartPoleSB3VecEnv(VecEnv):
         obs, env_reward, terminated, truncated, info = self.vector_env.step(self._actions)
         self._actions = None
         done = terminated | truncated
-        after = np.where(done[:, None], info["final_obs"], obs) if done.any() else obs
+        after = obs
+        if done.any():  # the ended episodes' last observations (final_obs holds None for the others)
+            after = obs.copy()
+            after[done] = np.stack(info["final_obs"][done])
         reward = self.training_reward(env_reward, before, after, info)
         self._returns += env_reward
         self._attacks += info["heart_attack"]
