@@ -76,7 +76,8 @@ def test_step_returns_gymnasium_five_tuple_and_info() -> None:
     obs, reward, terminated, truncated, info = env.step(1)
     assert obs in env.observation_space and obs.dtype == np.float32
     assert isinstance(reward, float) and terminated is False and truncated is False
-    assert info["action"] == 1 and env.action_names[1] == "drink_coffee" and isinstance(info["heart_attack"], bool)
+    assert info["action_taken"] == 1 and env.action_names[1] == "drink_coffee"
+    assert isinstance(info["heart_attack"], bool)
     assert 0 < info["heart_attack_risk"] < 0.5
     assert info["productivity"] == pytest.approx(info["score"])  # one half-hour worked so far
     assert env.state["time_elapsed"] == 1.0 and env.state["time_since_slept"] == 1.0
@@ -89,7 +90,7 @@ def test_sleep_takes_sixteen_half_hours_and_wakes_up() -> None:
     before = env.state
     _, _, _, _, info = env.step(3)
     after = env.state
-    assert info["action"] == 3
+    assert info["action_taken"] == 3
     assert after["time_elapsed"] == before["time_elapsed"] + 17
     assert after["time_since_slept"] == 1.0
     if not info["heart_attack"]:
@@ -319,7 +320,7 @@ def test_reset_info_has_the_step_infos_keys_and_types() -> None:
     stepped = env.step(2)[4]
     assert info == dict(RESET_INFO) and info is not RESET_INFO
     assert {key: type(value) for key, value in info.items()} == {key: type(value) for key, value in stepped.items()}
-    assert stepped["action"] == 2 and env.action_names[stepped["action"]] == "drink_beer"
+    assert stepped["action_taken"] == 2 and env.action_names[stepped["action_taken"]] == "drink_beer"
     assert env.action_names == tuple(action.name for action in env.actions)
 
 
@@ -353,7 +354,7 @@ def test_minaris_data_collector_records_infos(tmp_path, monkeypatch) -> None:
     assert dataset.total_episodes == len(episodes) == 3
     for i, episode in enumerate(episodes):
         assert sorted(episode.infos) == sorted(RESET_INFO)
-        assert episode.infos["action"].tolist() == [-1, *taken[5 * i : 5 * i + 5]]  # reset's -1, then the indices
-        np.testing.assert_array_equal(episode.infos["action"][1:], episode.actions)
+        assert episode.infos["action_taken"].tolist() == [-1, *taken[5 * i : 5 * i + 5]]  # reset's -1, then the indices
+        np.testing.assert_array_equal(episode.infos["action_taken"][1:], episode.actions)
         np.testing.assert_allclose(episode.infos["heart_attack_risk"][1:], risks[5 * i : 5 * i + 5])
         assert episode.infos["productivity"][0] == 0 and episode.infos["productivity"][1:].all()

@@ -326,7 +326,7 @@ def test_variant_round_trip_define_make_vector_make_and_evaluate(variants) -> No
     assert pickle.loads(pickle.dumps(env.unwrapped)).actions == env.unwrapped.actions
     obs, _ = env.reset(seed=0)
     obs, _, _, _, info = env.step(4)
-    assert env.unwrapped.action_names[info["action"]] == "take_a_walk" and obs[TIME_ELAPSED] == 2
+    assert env.unwrapped.action_names[info["action_taken"]] == "take_a_walk" and obs[TIME_ELAPSED] == 2
 
     episodes = 500
     vec = gym.make_vec("WalkPole-v0", num_envs=episodes, vectorization_mode="vector_entry_point")
@@ -350,7 +350,7 @@ def test_variant_round_trip_define_make_vector_make_and_evaluate(variants) -> No
 
     sync = gym.make_vec("WalkPole-v0", num_envs=2, vectorization_mode="sync")
     sync.reset(seed=0)
-    assert sync.step(np.array([4, 0]))[4]["action"].tolist() == [4, 0]  # indices, as the native vector env's
+    assert sync.step(np.array([4, 0]))[4]["action_taken"].tolist() == [4, 0]  # indices, as the native vector env's
 
 
 def test_variant_with_its_own_variable_defined_as_plain_data(variants) -> None:

@@ -76,8 +76,8 @@ def test_same_step_autoreset_reports_the_final_observation() -> None:
     assert [last[4] for last in info["final_obs"]] == [2, 2]  # two half-hours worked
     assert (obs[:, 4] == 0).all()  # already the next episode
     assert info["final_info"]["score"].shape == (2,) and info["final_info"]["_score"].all()
-    np.testing.assert_array_equal(info["final_info"]["action"], [0, 1])
-    np.testing.assert_array_equal(info["action"], [-1, -1])  # the new episodes' reset() values
+    np.testing.assert_array_equal(info["final_info"]["action_taken"], [0, 1])
+    np.testing.assert_array_equal(info["action_taken"], [-1, -1])  # the new episodes' reset() values
 
 
 def test_info_has_the_single_envs_keys_with_action_indices() -> None:
@@ -88,8 +88,8 @@ def test_info_has_the_single_envs_keys_with_action_indices() -> None:
     single.reset(seed=0)
     single_info = single.step(2)[4]
     assert {k for k in info if not k.startswith("_")} == set(single_info) == set(RESET_INFO)
-    np.testing.assert_array_equal(info["action"], [2, 0, 3])
-    assert single_info["action"] == 2 and env.action_names[info["action"][0]] == "drink_beer"
+    np.testing.assert_array_equal(info["action_taken"], [2, 0, 3])
+    assert single_info["action_taken"] == 2 and env.action_names[info["action_taken"][0]] == "drink_beer"
     assert all(info["_" + k].all() for k in info if not k.startswith("_"))
 
 
@@ -406,7 +406,7 @@ def test_same_step_counts_an_episodes_last_step_once() -> None:
     totals += final["heart_attack"].sum(), final["productivity"].sum()
     np.testing.assert_array_equal(totals, expected)
     assert expected[0] > 0 and final["heart_attack"].any()  # heart attacks happened, on the last step too
-    assert (info["action"] == -1).all() and (info["productivity"] == 0).all()  # the new episodes' reset values
+    assert (info["action_taken"] == -1).all() and (info["productivity"] == 0).all()  # the new episodes' reset values
 
 
 def test_reset_info_has_the_step_infos_keys_and_dtypes() -> None:
@@ -417,3 +417,39 @@ def test_reset_info_has_the_step_infos_keys_and_dtypes() -> None:
     for key in INFO_KEYS:
         assert info[key].dtype == stepped[key].dtype == INFO_DTYPES[key] and info["_" + key].all()
         assert (info[key] == RESET_INFO[key]).all()
+
+
+STEP_NAMES = {"observation", "action", "reward", "done", "terminated", "truncated", "next"}
+"""Names of a step's own values, which TorchRL keeps in the same tensordict as the info keys."""
+
+
+def test_no_info_key_is_named_like_a_steps_own_values() -> None:
+    """TorchRL's batched envs put every info key beside the step's own values: an ``info["action"]`` took the
+    place of TorchRL's ``action`` and failed in tensordict (size 3 against 4)."""
+    env = make(2, max_steps=1, autoreset_mode=AutoresetMode.SAME_STEP)
+    _, reset_info = env.reset(seed=0)
+    info = env.step(np.array([0, 1]))[4]
+    single = heartpole.HeartPole()
+    keys = {*reset_info, *info, *info["final_info"], *single.reset(seed=0)[1], *single.step(0)[4]}
+    assert keys >= set(INFO_KEYS) and not keys & STEP_NAMES
+
+
+@pytest.mark.parametrize("vectorization", ["sync", "native SAME_STEP", "native DISABLED"])
+def test_torchrls_batched_gym_wrapper_reads_the_infos(vectorization: str) -> None:
+    """Where TorchRL is installed (it is no dependency): ``GymWrapper`` over a vector env rolls out through
+    episode ends, registering the info keys (it reads none in DISABLED mode, where it resets the ended envs
+    with ``reset_mask`` itself)."""
+    pytest.importorskip("torchrl")
+    from torchrl.envs import GymWrapper
+
+    kwargs = {"num_envs": 4, "max_steps": 5}
+    if vectorization == "sync":
+        sync = {"vectorization_mode": "sync", "vector_kwargs": {"autoreset_mode": AutoresetMode.SAME_STEP}}
+        env = gym.make_vec("HeartPole-v0", **sync, max_episode_steps=5, **kwargs)
+    else:
+        env = make(autoreset_mode=AutoresetMode[vectorization.split()[1]], **kwargs)
+    rollout = GymWrapper(env).rollout(12, break_when_any_done=False)
+    assert tuple(rollout.batch_size) == (4, 12)
+    read = {"heart_attack", "score", "action_taken"} & set(rollout["next"].keys())
+    assert len(read) == (0 if vectorization.endswith("DISABLED") else 3)
+    assert rollout["next", "truncated"].sum() == 8  # two episode ends for each env

@@ -11,8 +11,8 @@ Discrete(4)
 >>> obs.shape, env.observation_space.contains(obs)
 ((6,), True)
 >>> obs, reward, terminated, truncated, info = env.step(1)
->>> info["action"], terminated
-('drink_coffee', False)
+>>> info["action_taken"], env.unwrapped.action_names[info["action_taken"]], terminated
+(1, 'drink_coffee', False)
 
 Policies are judged over many episodes, with 95% intervals:
 

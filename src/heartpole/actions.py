@@ -27,7 +27,7 @@ class Action:
     """One choice the agent can make every half-hour, before the half-hour of work that follows it.
 
     Attributes:
-        name: a short identifier, shown in ``info["action"]`` and in the text log.
+        name: a short identifier, shown in the text log and by the envs' ``action_names``.
         effects: ``{variable: (low, high)}``: the action adds a uniform random amount in [low, high] to
             each named state variable, drawn afresh every time.
         rest_half_hours: half-hours that pass without work after the effects (a nap, exercise).

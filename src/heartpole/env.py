@@ -27,15 +27,17 @@ CONSTRUCTOR_KEYWORDS = (
 LOG_MAX_STEPS = 1000
 
 NO_ACTION = -1
-"""``info["action"]`` before any step (in ``reset``'s ``info``): no action taken yet."""
+"""``info["action_taken"]`` before any step (in ``reset``'s ``info``): no action taken yet."""
 
-RESET_INFO: Mapping[str, Any] = MappingProxyType({
-    "action": NO_ACTION,
-    "heart_attack": False,
-    "heart_attack_risk": 0.0,  # no coin flipped yet
-    "productivity": 0.0,  # no work done yet
-    "score": float(score(0.0, 0.0)),
-})
+RESET_INFO: Mapping[str, Any] = MappingProxyType(
+    {
+        "action_taken": NO_ACTION,
+        "heart_attack": False,
+        "heart_attack_risk": 0.0,  # no coin flipped yet
+        "productivity": 0.0,  # no work done yet
+        "score": float(score(0.0, 0.0)),
+    }
+)
 """``reset``'s ``info``: a step's keys with their values before any step, of the same Python types, so
 that tools which record infos (Minari's ``DataCollector``, TorchRL's specs) see one structure throughout."""
 
@@ -160,13 +162,14 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     ``OrderEnforcing`` and ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
 
     ## Info
-    ``action`` (the index of the action taken, an int; ``env.unwrapped.action_names[i]`` is its name),
+    ``action_taken`` (the index of the action taken, an int; ``env.unwrapped.action_names[i]`` is its name),
     ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the coin was flipped with, used by the
     expected-risk estimate), ``productivity`` (this half-hour's work) and ``score`` (``work_done /
     time_elapsed``). ``reset`` returns the same keys with the same types and their values before any step
-    (:data:`heartpole.env.RESET_INFO`): ``action`` -1 (none yet), ``heart_attack`` False and 0.0 for the
-    others, so tools that record infos (Minari's ``DataCollector(record_infos=True)``, TorchRL) see one
-    structure throughout.
+    (:data:`heartpole.env.RESET_INFO`): ``action_taken`` -1 (none yet), ``heart_attack`` False and 0.0 for
+    the others, so tools that record infos (Minari's ``DataCollector(record_infos=True)``, TorchRL) see one
+    structure throughout. No key is named like the step's own values (``action``, ``observation``,
+    ``reward``, ...): TorchRL puts the info keys beside those, and an ``info["action"]`` replaced its action.
 
     ## Rendering
     ``"ansi"`` returns the tutorial's log of the steps since the last render (action names, HEART ATTACK
@@ -199,8 +202,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
       five), so a seed gives another trajectory than in 0.1, with the same distribution.
     * v0, package 0.3: same dynamics; the step is compiled (numba) in float32 with a counter-based random
       number generator, so a seed gives another trajectory than in 0.2, with the same distribution.
-      ``info["action"]`` is the action's index (it was its name); ``reset``'s ``info`` has a step's keys
-      (it was empty).
+      ``info["action"]`` (the action's name) became ``info["action_taken"]`` (its index); ``reset``'s ``info``
+      has a step's keys (it was empty).
     """
 
     metadata = {"render_modes": ["human", "ansi", "rgb_array"], "render_fps": 8}
@@ -243,7 +246,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
     @property
     def action_names(self) -> tuple[str, ...]:
-        """The actions' names, in action-index order: ``action_names[info["action"]]`` names a step's action."""
+        """The actions' names, in action-index order: ``action_names[info["action_taken"]]`` names a step's."""
         return self._action_names
 
     @property
@@ -284,7 +287,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         if self.render_mode is not None:
             self._remember(index, attack)
         info = {
-            "action": index,
+            "action_taken": index,
             "heart_attack": attack,
             "heart_attack_risk": risk,
             "productivity": worked,

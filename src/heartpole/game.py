@@ -92,7 +92,7 @@ class Game:
         self.heart_attacks += bool(info["heart_attack"])
         self.risk_taken += float(info["heart_attack_risk"])
         self.score = float(info["score"])
-        self.actions.append(self.heartpole.action_names[info["action"]])
+        self.actions.append(self.heartpole.action_names[info["action_taken"]])
         return info
 
     def status(self, max_steps: int) -> list[str]:

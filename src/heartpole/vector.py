@@ -22,7 +22,7 @@ from heartpole.model import Variable, check_integer
 INFO_KEYS = tuple(RESET_INFO)
 """The keys of a step's and a reset's ``info`` (each with its ``_key`` mask): the single env's."""
 
-INFO_DTYPES = {"action": kernel.ACTION_DTYPE, **{key: kernel.OUTPUTS[key] for key in INFO_KEYS[1:]}}
+INFO_DTYPES = {"action_taken": kernel.ACTION_DTYPE, **{key: kernel.OUTPUTS[key] for key in INFO_KEYS[1:]}}
 """The dtypes of the ``info`` arrays, the same from ``step`` and ``reset``."""
 
 
@@ -46,12 +46,12 @@ class HeartPoleVectorEnv(VectorEnv):
     Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
     variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
 
-    ``info`` holds the single env's keys (:data:`INFO_KEYS`: ``action``, the index of the action taken,
+    ``info`` holds the single env's keys (:data:`INFO_KEYS`: ``action_taken``, the index of the action taken,
     ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
     arrays of ``num_envs`` values (dtypes :data:`INFO_DTYPES`), with Gymnasium's ``_key`` masks. ``step``
     reports every key for every env (one mask array shared by the keys). ``reset`` gives the same keys with
-    their values before any step (``action`` -1, the others 0 or False, as the single env's ``reset``), for
-    the envs it reset.
+    their values before any step (``action_taken`` -1, the others 0 or False, as the single env's
+    ``reset``), for the envs it reset.
 
     ``reset(options={"reset_mask": mask})`` resets only the envs where ``mask`` (a bool array of shape
     ``(num_envs,)`` with at least one True; else ``TypeError`` or ``ValueError``, as Gymnasium's vector envs
@@ -151,7 +151,7 @@ class HeartPoleVectorEnv(VectorEnv):
 
     @property
     def action_names(self) -> tuple[str, ...]:
-        """The actions' names, in action-index order: ``action_names[info["action"][i]]`` names env i's action."""
+        """The actions' names, in action-index order: ``action_names[info["action_taken"][i]]`` names env i's."""
         return tuple(action.name for action in self.dynamics.actions)
 
     @property
