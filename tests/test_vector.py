@@ -59,6 +59,7 @@ def test_next_step_autoreset_restarts_an_env_on_the_step_after_truncation() -> N
         assert not env.step(np.array([1, 2, 0]))[3].any()
     obs, reward, terminated, truncated, _ = env.step(np.array([1, 2, 0]))
     assert truncated.all() and not terminated.any() and obs[:, 4].min() >= 3
+    truncated[:], terminated[:] = False, True  # the caller's arrays: the env does not read them back
     obs, reward, terminated, truncated, info = env.step(np.array([3, 3, 3]))  # actions ignored
     assert not truncated.any() and (reward == 0).all()
     assert all((info[k] == v).all() and info["_" + k].all() for k, v in RESET_INFO.items())  # reset()'s values

@@ -216,16 +216,16 @@ class HeartPoleVectorEnv(VectorEnv):
             self._last_actions[:], self._last_attacks[:] = action, attack
             self._heart_attacks += attack
         ended = None if self._clock < self._next_end else self._clock - self._starts >= self.max_steps
-        obs = self._observations()
-        if ended is not None and self.autoreset_mode == AutoresetMode.SAME_STEP:
+        obs, self._ended = self._observations(), None
+        if ended is None:
+            truncated = np.zeros(n, dtype=bool)
+        elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
             info.update(_final_infos(info, obs, ended))
             self._restart(ended)
             _write_reset_values(info, ended)
-            obs = self._observations()
-            ended, self._ended = ended.copy(), None
-        else:
-            self._ended = ended
-        truncated = np.zeros(n, dtype=bool) if ended is None else ended.copy()
+            obs, truncated = self._observations(), ended
+        else:  # they restart on the next step (NEXT_STEP) or when the caller resets them (DISABLED)
+            self._ended, truncated = ended, ended.copy()
         return obs, reward, np.zeros(n, dtype=bool), truncated, info
 
     def render(self) -> tuple[np.ndarray, ...] | None:
