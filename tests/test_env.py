@@ -324,6 +324,7 @@ def test_reset_info_has_the_step_infos_keys_and_types() -> None:
     assert env.action_names == tuple(action.name for action in env.actions)
 
 
+@pytest.mark.filterwarnings("ignore:`code_permalink` is set to None:UserWarning")
 def test_minaris_data_collector_records_infos(tmp_path, monkeypatch) -> None:
     """Minari's own ``DataCollector(record_infos=True)`` over ``gym.make("HeartPole-v0")`` (it checks that every
     step's info has reset's structure) records episodes whose infos hold the env's values."""
