@@ -108,7 +108,7 @@ class OptimumSolution:
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         _atomic_write(directory / "optimum.npz", lambda handle: np.savez_compressed(handle, thresholds=self.thresholds))
-        text = json.dumps(self.summary(), indent=2) + "\n"
+        text = json.dumps(self.summary(), indent=2, allow_nan=False) + "\n"
         _atomic_write(directory / "optimum.json", lambda handle: handle.write(text.encode()))
         return directory
 
