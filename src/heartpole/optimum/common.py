@@ -58,8 +58,9 @@ class Settling:
     then grow by the same amount per decision (the policy's gain) and their differences converge,
     geometrically, to fixed ones (on v0 to rounding within about 1,200 decisions). :meth:`update` is given,
     after each decision, the arrays that must repeat exactly (the decisions, the days' lengths) and the
-    values; it answers ``True`` once, for ``needed`` decisions in a row, the exact arrays repeated and every
-    value less its first element changed by at most :data:`SETTLE_TOLERANCE` times ``1 + max |value|``.
+    values; it answers ``True`` once the exact arrays have repeated for ``needed`` decisions in a row and every
+    value less its first element changed by at most :data:`SETTLE_TOLERANCE` times ``1 + max |value|`` over
+    the last decision (the differences converge geometrically: a step that small leaves them settled).
     With ``needed`` longer than a day, every day's length has settled too; from there on the recursion
     would only add the gain, so it can stop and the policy can be kept once for all decisions beyond.
     """
@@ -68,18 +69,20 @@ class Settling:
         self.needed = needed
         self.run = 0
         self.exact: list[np.ndarray] = []
-        self.values: list[np.ndarray] = []
+        self.values: list[np.ndarray] | None = None
 
     def update(self, exact: tuple[np.ndarray, ...], values: tuple[np.ndarray, ...]) -> bool:
         """Record one decision's arrays; whether the recursion has settled (see the class docstring)."""
         same = len(self.exact) == len(exact) and all(np.array_equal(a, b) for a, b in zip(self.exact, exact))
-        if same:
+        self.run = self.run + 1 if same else 0
+        self.exact = [np.array(a, copy=True) for a in exact]
+        settled = self.run >= self.needed and self.values is not None
+        if settled and self.values is not None:
             for now, before in zip(values, self.values):
                 change = float(np.abs((now - now.flat[0]) - (before - before.flat[0])).max())
                 if change > SETTLE_TOLERANCE * (1.0 + float(np.abs(now).max())):
-                    same = False
+                    settled = False
                     break
-        self.run = self.run + 1 if same else 0
-        self.exact = [np.array(a, copy=True) for a in exact]
-        self.values = [np.array(a, copy=True) for a in values]
-        return self.run >= self.needed
+        # the values are compared only once the decisions have repeated long enough: copies only from there
+        self.values = [np.array(a, copy=True) for a in values] if self.run >= self.needed - 1 else None
+        return settled

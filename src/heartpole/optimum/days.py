@@ -11,27 +11,25 @@ once while consecutive ones repeat (far from the end they all do: the policy has
 
 :func:`episode_outcome` turns them into ``E[work / time]``. An episode's time is ``T = max_steps +
 sleep_half_hours * K`` for ``K`` sleeps, which varies with the work, so the score is not a ratio of
-expectations. Carrying the law of ``K`` at every day start would take time growing like ``max_steps ** 1.5``
-(its spread grows like the root of the days); instead ``1 / T = integral of exp(-u T) du`` over ``u > 0``,
-and for each ``u`` the expectation ``E[work * exp(-u T)]`` takes one pass over the days that multiplies by
-``exp(-u * sleep_half_hours)`` at each sleep. A Gauss-Laguerre rule in ``u * E[T]`` with
-:data:`LAGUERRE_NODES` nodes gives the integral to rounding, because ``T`` stays close to its mean (within
-a few percent on v0). A first pass gives ``E[K]``, so ``E[T]``. Each pass is compiled (numba) and goes
-once through the decisions, keeping only the next ``max_awake + 1`` day starts.
+expectations. Carrying the law of ``K`` at every day start (the old pass) takes time growing like
+``max_steps ** 1.5`` (its spread grows like the root of the days) and memory like ``max_steps ** 2``.
+Instead, with ``tau = T / max_steps >= 1``, ``1 / tau`` is the integral of ``exp(-u tau)`` over ``u > 0``,
+and for each ``u`` the expectation ``E[work * exp(-u tau)]`` takes one pass over the days that multiplies
+by ``exp(-u * sleep_half_hours / max_steps)`` at each sleep. :func:`time_rule` gives the integral to
+rounding for every ``tau`` an episode can have, whatever the law of ``K``. One compiled (numba) pass
+carries all its nodes at once, through the decisions from the top, keeping only the next ``max_awake + 1``
+day starts: time linear in the horizon, memory independent of it.
 """
 
 from __future__ import annotations
 
+import math
 from array import array
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numba import njit
-
-LAGUERRE_NODES = 32
-"""Nodes of the Gauss-Laguerre rule for ``E[work / time]``: exact to rounding while episodes' times stay
-within a factor of about two of their mean (error below 3e-14 relative for ``T / E[T]`` in [0.55, 2])."""
 
 Kernel = tuple[np.ndarray, np.ndarray, np.ndarray]
 """A day's kernel: its lengths ``L`` (ascending), their probabilities and ``E[work of the day; L]``."""
@@ -58,6 +56,7 @@ class DayKernels:
         self._starts = array("q", [0])  # kernel k is entries _starts[k]:_starts[k + 1]
         self._rows = array("q")  # the kernel of each n
         self._last: Kernel | None = None
+        self._days: tuple[np.ndarray, np.ndarray] | None = None  # the last lengths and work added
         self.first: Kernel | None = None
 
     @property
@@ -67,6 +66,10 @@ class DayKernels:
 
     def add(self, lengths: np.ndarray, earned: np.ndarray) -> None:
         """Add the kernel of days starting at the next ``n`` (see :func:`day_kernel`)."""
+        if self._days is not None and all(np.array_equal(a, b) for a, b in zip(self._days, (lengths, earned))):
+            self._rows.append(self._rows[-1])  # the same days as the last n: the same kernel
+            return
+        self._days = (lengths.copy(), earned.copy())
         kernel = day_kernel(lengths, earned)
         last = self._last
         if last is None or not all(np.array_equal(a, b) for a, b in zip(kernel, last)):
@@ -117,21 +120,28 @@ def episode_outcome(days: DayKernels, steps: int, sleep_time: int) -> EpisodeOut
         RuntimeError: if the days lose probability (a kernel that does not sum to one).
     """
     lengths, probs, earned, starts, rows, (first_lengths, first_probs, first_earned) = days.arrays()
+    nodes, weights = time_rule(1.0 + sleep_time)  # tau = T / steps lies in [1, 1 + sleep_time]
+    tilts = np.concatenate([[1.0], np.exp(-nodes * sleep_time / steps)])  # the first: plain expectations
+    kernels = (lengths, probs, earned, starts, rows, first_lengths, first_probs, first_earned)
+    ends = np.asarray(_episode_sums(*kernels, steps, tilts))
+    if abs(ends[0, 0] - 1.0) > 1e-9:
+        raise RuntimeError(f"the days' probabilities sum to {ends[0, 0]}, not 1")
+    work, sleeps = float(ends[1, 0]), float(ends[2, 0])
+    # E[W / T] = E[W / tau] / steps, and exp(-u tau) = exp(-u) * exp(-u sleep_time / steps) ** K
+    score = float(np.sum(weights * np.exp(-nodes) * ends[1, 1:])) / steps
+    return EpisodeOutcome(score, sleeps, work, steps + sleep_time * sleeps)
 
-    def sums(tilts: np.ndarray) -> np.ndarray:
-        kernels = (lengths, probs, earned, starts, rows, first_lengths, first_probs, first_earned)
-        return np.asarray(_episode_sums(*kernels, steps, tilts))
 
-    plain = sums(np.ones(1))
-    if abs(plain[0, 0] - 1.0) > 1e-9:
-        raise RuntimeError(f"the days' probabilities sum to {plain[0, 0]}, not 1")
-    work, sleeps = float(plain[1, 0]), float(plain[2, 0])
-    mean_time = steps + sleep_time * sleeps
-    nodes, weights = np.polynomial.laguerre.laggauss(LAGUERRE_NODES)
-    tilted = sums(np.exp(-nodes * sleep_time / mean_time))
-    # E[W / T] = integral over x > 0 of E[W exp(-x T / E[T])] / E[T]: the Laguerre weight is exp(-x)
-    score = float(np.sum(weights * np.exp(-nodes * (steps / mean_time - 1.0)) * tilted[1])) / mean_time
-    return EpisodeOutcome(score, sleeps, work, mean_time)
+def time_rule(longest: float) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes ``u`` and weights of a rule for ``1 / tau = integral of exp(-u tau) du`` over ``u > 0``, for every
+    ``tau`` in ``[1, longest]``: the trapezoid rule after ``u = exp(t - exp(-t))``, under which the integrand
+    falls double-exponentially at both ends. Relative error below 1e-14 up to ``longest = 10,000`` (69 nodes
+    up to 30); the step shrinks slowly with ``longest``, as the theory of the rule wants.
+    """
+    step = min(0.125, 0.4 / math.log(longest + 1.0))
+    t = np.arange(-4.5, math.log(45.0) + 0.25, step)
+    u = np.exp(t - np.exp(-t))
+    return u, step * u * (1.0 + np.exp(-t))
 
 
 @njit(cache=True, nogil=True)
