@@ -57,7 +57,9 @@ class DayKernels:
         self._rows = array("q")  # the kernel of each n
         self._last: Kernel | None = None
         self._days: tuple[np.ndarray, np.ndarray] | None = None  # the last lengths and work added
-        self.first: Kernel | None = None
+        self.first: Kernel | None = None  # set by close, with the frozen arrays below
+        self.lengths = self.probs = self.earned = np.empty(0)
+        self.starts = self.rows = np.zeros(1, dtype=np.int64)
 
     @property
     def stored(self) -> int:

@@ -45,8 +45,8 @@ class OptimumSolution:
         thresholds: ``(rows, max_awake)`` alertness thresholds: with ``n`` decisions left and
             ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
             Far from the end the policy settles into a stationary one; the rows stop there and
-            ``n >= rows`` uses the last row (:meth:`sleeps` does). About 1,200 rows on v0 whatever the horizon
-            (``max_steps + 1`` rows when the horizon is shorter or the policy never settles).
+            ``n >= rows`` uses the last row (:meth:`thresholds_at` and :meth:`sleeps` do). About 1,000 rows
+            on v0 whatever the horizon (``max_steps + 1`` where the policy never settles).
     """
 
     env_id: str
@@ -68,15 +68,23 @@ class OptimumSolution:
         """Half-hours awake after which the policy always sleeps."""
         return int(self.thresholds.shape[1])
 
+    def thresholds_at(self, decisions_left: int | np.ndarray) -> np.ndarray:
+        """The rows of :attr:`thresholds` for ``decisions_left`` (any of 0..max_steps; shape ``(..., max_awake)``)."""
+        return self.thresholds[self._row(decisions_left)]
+
     def sleeps(
         self, alertness: np.ndarray, time_since_slept: np.ndarray, decisions_left: int | np.ndarray
     ) -> np.ndarray:
         """Whether the optimal policy sleeps, elementwise (no-drink states; ``decisions_left`` in 1..max_steps)."""
-        n = np.clip(np.asarray(decisions_left, dtype=np.int64), 0, len(self.thresholds) - 1)
         t = np.asarray(time_since_slept, dtype=np.int64)
         inside = t < self.max_awake
-        threshold = self.thresholds[np.broadcast_to(n, t.shape), np.minimum(t, self.max_awake - 1)]
+        threshold = self.thresholds[
+            np.broadcast_to(self._row(decisions_left), t.shape), np.minimum(t, self.max_awake - 1)
+        ]
         return ~inside | (np.asarray(alertness, dtype=np.float64) < threshold)
+
+    def _row(self, decisions_left: int | np.ndarray) -> np.ndarray:
+        return np.clip(np.asarray(decisions_left, dtype=np.int64), 0, len(self.thresholds) - 1)
 
     def within(self, interval: tuple[float, float]) -> bool:
         """Whether :attr:`expected_return` lies in ``interval`` (an evaluator's 95% interval, say) widened by
