@@ -17,6 +17,8 @@ measured alike gives the start-up alone.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import platform
 import statistics
@@ -42,8 +44,10 @@ class Run:
 
     seconds: float
     peak_mb: float
-    rows: int
-    cache_kb: float
+    rows: int = 0
+    cache_kb: float = 0.0
+    score: float = math.nan
+    error_bound: float = math.nan
 
 
 def run(argv: list[str], cache: Path) -> Run:
@@ -59,14 +63,15 @@ def run(argv: list[str], cache: Path) -> Run:
     error = child.stderr.read().decode() if child.stderr else ""
     if child.returncode:
         raise SystemExit(f"heartpole {' '.join(argv)} failed ({child.returncode}): {error}")
-    files = list(cache.glob("optimum/*/optimum.*"))
-    rows = 0
-    for path in files:
-        if path.suffix == ".npz":
-            with np.load(path) as arrays:
-                rows = int(arrays["thresholds"].shape[0])
     peak = usage.ru_maxrss / 1024 if sys.platform != "darwin" else usage.ru_maxrss / 2**20  # kB or bytes
-    return Run(seconds, peak, rows, sum(path.stat().st_size for path in files) / 1024)
+    files = sorted(cache.glob("optimum/*/optimum.*"))
+    if not files:
+        return Run(seconds, peak)
+    summary = json.loads(files[0].read_text())  # optimum.json, then optimum.npz
+    with np.load(files[1]) as arrays:
+        rows = int(arrays["thresholds"].shape[0])
+    size = sum(path.stat().st_size for path in files) / 1024
+    return Run(seconds, peak, rows, size, summary["expected_score"], summary["error_bound"])
 
 
 def solve(horizon: int) -> Run:
@@ -84,14 +89,16 @@ def table(runs: dict[int, list[Run]], startup: list[Run], repeats: int) -> str:
     """The Markdown table of ``runs`` by horizon, ratios against the anchor's run of the same repeat."""
     anchor = runs[ANCHOR]
     lines = [
-        "| decisions | wall time, s | x the 1,000-decision time | peak memory, MB | threshold rows | cache on disk |",
-        "|---:|---:|---:|---:|---:|---:|",
+        "| decisions | wall time, s | x the 1,000-decision time | peak memory, MB | expected score | error bound "
+        "| threshold rows | cache on disk |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for horizon, measured in runs.items():
         ratios = [m.seconds / a.seconds for m, a in zip(measured, anchor)]
         lines.append(
             f"| {horizon:,} | {spread([m.seconds for m in measured], 1)} | {spread(ratios, 2)} "
-            f"| {spread([m.peak_mb for m in measured], 0)} | {measured[0].rows:,} | {measured[0].cache_kb:.0f} kB |"
+            f"| {spread([m.peak_mb for m in measured], 0)} | {measured[0].score:.5f} | {measured[0].error_bound:.1e} "
+            f"| {measured[0].rows:,} | {measured[0].cache_kb:.0f} kB |"
         )
     start = f"{spread([m.seconds for m in startup], 1)} s and {spread([m.peak_mb for m in startup], 0)} MB"
     machine = (
@@ -104,7 +111,8 @@ def table(runs: dict[int, list[Run]], startup: list[Run], repeats: int) -> str:
             *lines,
             "",
             f"Median (range) of {repeats} runs each, every run a fresh process with an empty cache; "
-            f"`heartpole --help` alone (start-up and imports): {start}. Machine: {machine}.",
+            f"`heartpole --help` alone (Python's start-up and the command line, no solver): {start}. "
+            f"Machine: {machine}.",
         ]
     )
 

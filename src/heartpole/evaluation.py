@@ -171,7 +171,8 @@ class EvaluationResult:
 
     @property
     def width_ratio(self) -> float:
-        """How many times narrower the expected-risk interval is than the realized one."""
+        """How many times narrower the expected-risk interval is than the realized one (``inf`` where the
+        expected-risk return is the same in every episode, ``nan`` with fewer than two episodes)."""
         expected = self.expected_ci95[1] - self.expected_ci95[0]
         realized = self.ci95[1] - self.ci95[0]
         return realized / expected if expected > 0 else math.inf
