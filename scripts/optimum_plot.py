@@ -32,12 +32,13 @@ def main() -> None:
     solution = optimum("HeartPole-v0")
     alertness = np.linspace(0.0, 1.0, 100001)
     expert = alertness[np.argmax(productivity(alertness, 0.0) >= expert_rate(Params()))]
-    n = np.arange(solution.thresholds.shape[0])
+    n = np.arange(solution.params.max_steps + 1)
+    thresholds = solution.thresholds_at(n)  # the rows end where the policy settles; later n use the last
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5), gridspec_kw={"width_ratios": [2, 1]})
     colors = plt.cm.viridis(np.linspace(0, 1, 13))
     for axis, (low, high) in zip(axes, [(1, 1000), (1, 120)]):
         for color, t in zip(colors, range(10, 23)):
-            values = solution.thresholds[low : high + 1, t]
+            values = thresholds[low : high + 1, t]
             shown = np.where(np.isfinite(values), values, np.nan)
             axis.plot(n[low : high + 1], shown, ".", ms=2.5, color=color, label=f"t = {t}" if axis is axes[1] else None)
         axis.axhline(expert, color="crimson", lw=1, ls="--", label="expert" if axis is axes[1] else None)

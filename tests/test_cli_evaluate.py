@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -139,3 +140,89 @@ def test_evaluate_tells_which_recorded_statistics_a_model_applies(tmp_path: Path
     (tmp_path / "heartpole.json").write_text(json.dumps(record))
     assert main(argv) == 0
     assert f"normalises observations with {tmp_path / 'vecnormalize.pkl'}" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------------------------------------
+# one episode, no optimum, failures after the episodes (in-process: quicker than a subprocess each)
+
+NOT_A_NUMBER = re.compile(r"(?<![a-z])(nan|inf|infinity|infx)(?![a-z])", re.IGNORECASE)
+
+
+def _refuse(constant: str) -> None:
+    raise ValueError(f"{constant} is not JSON")
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    from heartpole.cli import main
+
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["evaluate", "--policy", "expert"],
+        ["evaluate", "--policy", "nothing"],
+        ["evaluate", "--policy", "expert", "--env", "HeartPole-v1"],
+        ["compare", "--policy", "expert", "--policy", "reference"],
+        ["compare", "--policy", "optimal", "--policy", "expert"],
+        ["baselines"],
+        ["optimum", "--check", "1"],
+    ],
+    ids=lambda argv: " ".join(argv),
+)
+@pytest.mark.parametrize("json_output", [False, True], ids=["text", "json"])
+def test_one_episode_says_there_is_no_interval_and_never_prints_nan(
+    argv: list[str], json_output: bool, capsys, tmp_path: Path
+) -> None:
+    """Issue 24: with one episode there is no interval. Text says so in words; JSON has null and parses with a
+    strict parser; neither shows nan or inf."""
+    episodes = [] if argv[0] == "optimum" else ["--episodes", "1"]
+    out = ["--out", str(tmp_path)] if argv[0] == "baselines" else []
+    code, stdout, stderr = _run(capsys, *argv, *episodes, *out, *(["--json"] if json_output else []))
+    assert code == 0, stderr
+    assert not NOT_A_NUMBER.search(stdout), stdout
+    if json_output:
+        json.loads(stdout, parse_constant=_refuse)
+    else:
+        assert "no 95% intervals: fewer than 2 episodes" in stdout
+    if argv[0] == "baselines":
+        for name in ("baselines.md", "baselines.csv"):
+            assert not NOT_A_NUMBER.search((tmp_path / name).read_text())
+
+
+def test_a_variant_without_optimum_says_why_in_one_line(capsys) -> None:
+    code, stdout, _ = _run(capsys, "evaluate", "--policy", "expert", "--env", "HeartPole-v1", "--episodes", "3")
+    assert code == 0 and "regret" not in stdout.replace("no regret", "")
+    lines = [line for line in stdout.splitlines() if line.startswith("no regret:")]
+    assert len(lines) == 1 and "HeartPole-v0's six" in lines[0]
+    code, stdout, _ = _run(
+        capsys, "evaluate", "--policy", "expert", "--env", "HeartPole-v1", "--episodes", "3", "--json"
+    )
+    data = json.loads(stdout, parse_constant=_refuse)
+    assert data["regret"] is None and "HeartPole-v0's six" in data["no_regret_reason"]
+
+
+def test_baselines_prints_its_results_before_writing_the_files(capsys, tmp_path: Path, monkeypatch) -> None:
+    """A failure writing the files comes after the results are on the screen: nothing computed is lost."""
+    import heartpole.cli.evaluate as command
+
+    def full_disk(path: object, write: object) -> None:
+        raise OSError("No space left on device")
+
+    monkeypatch.setattr(command, "atomic_write", full_disk)
+    code, stdout, stderr = _run(capsys, "baselines", "--episodes", "2", "--out", str(tmp_path))
+    assert code == 2 and "No space left on device" in stderr
+    assert "published Table 1" in stdout and "expert" in stdout
+
+
+def test_compare_checks_both_policies_before_running_either(capsys, monkeypatch, tmp_path: Path) -> None:
+    import heartpole.evaluation
+
+    ran: list[object] = []
+    monkeypatch.setattr(heartpole.evaluation, "evaluate", lambda *args, **kwargs: ran.append(args))
+    missing = str(tmp_path / "missing.zip")
+    code, _, stderr = _run(capsys, "compare", "--policy", "expert", "--policy", missing, "--episodes", "5")
+    assert code == 2 and "model file not found" in stderr and ran == []

@@ -243,3 +243,56 @@ def test_bad_policies_raise_clear_errors(policy: object, message: str) -> None:
 
 def test_risk_of_the_floor_is_the_models() -> None:
     assert heart_attack_risk(0.0) == pytest.approx(RISK_AT_REST)
+
+
+# ------------------------------------------------------------------------------------------------------
+# no optimum, failures after the episodes
+
+
+def test_without_an_optimum_the_result_has_no_regret_and_says_why() -> None:
+    """Issue 24: a variant the optimum does not cover still gets its result, with the solver's reason."""
+    for env_id, kwargs, reason in (
+        ("HeartPole-v1", {}, "HeartPole-v0's six"),
+        ("HeartPole-v0", {"heart_attack_proclivity": 0.0}, "drinking may pay"),
+    ):
+        result = evaluate("expert", env_id, episodes=3, seed=0, env_kwargs=kwargs)
+        assert math.isnan(result.regret) and result.solved is None and result.episodes == 3
+        assert result.no_regret_reason is not None and reason in result.no_regret_reason
+        assert "\n" not in result.no_regret_reason
+        data = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+        assert data["regret"] is None and data["no_regret_reason"] == result.no_regret_reason
+    covered = evaluate("expert", episodes=3, seed=0)
+    assert covered.no_regret_reason is None and math.isfinite(covered.regret)
+    assert evaluate("expert", "HeartPole-v1", episodes=3, regret=False).no_regret_reason is None
+
+
+def _counting_policy(calls: list[int]):
+    def nothing(obs: np.ndarray) -> np.ndarray:
+        calls.append(len(obs))
+        return np.zeros(len(obs), dtype=np.int64)
+
+    return nothing
+
+
+def test_a_failing_optimum_fails_before_any_episode_runs(monkeypatch) -> None:
+    """The optimum is solved before the episodes: a failure there (a bug, not a variant it does not cover)
+    surfaces at once and cannot throw away episodes already run."""
+    import heartpole.optimum
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise RuntimeError("a bug in the solver")
+
+    monkeypatch.setattr(heartpole.optimum, "optimum", broken)
+    calls: list[int] = []
+    with pytest.raises(RuntimeError, match="a bug in the solver"):
+        evaluate(_counting_policy(calls), episodes=2, seed=0, env_kwargs={"max_steps": 20})
+    assert calls == []
+    assert evaluate(_counting_policy(calls), episodes=2, seed=0, env_kwargs={"max_steps": 20}, regret=False)
+    assert len(calls) == 20
+
+
+def test_compare_checks_both_policies_before_running_either() -> None:
+    calls: list[int] = []
+    with pytest.raises(ValueError, match="unknown policy 'no-such-policy'"):
+        compare(_counting_policy(calls), "no-such-policy", episodes=2, env_kwargs={"max_steps": 20})
+    assert calls == []

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -154,6 +155,110 @@ def test_a_tiny_instance_matches_brute_force(sleep_half_hours: int) -> None:
     # the instance is not trivial: the policy sleeps in some states and works on in others
     thresholds = solution.thresholds[1:6, :5]
     assert np.isfinite(thresholds).any() or (np.isposinf(thresholds).any() and np.isneginf(thresholds).any())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# long horizons: the settled policy, the linear pass over days, memory
+
+
+def _joint_law_outcome(days, steps: int, sleep_time: int) -> tuple[float, float]:
+    """``E[work / time]`` and ``E[sleeps]`` from the joint law of (day start, sleeps so far): the pass the
+    solver used before, with memory quadratic in the horizon, kept here as the reference of the linear one."""
+    mass, work = np.zeros((steps + 1, steps + 2)), np.zeros((steps + 1, steps + 2))
+    sleeps_so_far = np.arange(steps + 2)
+    score = sleeps = 0.0
+    for n in range(steps, -1, -1):
+        if n == steps:
+            day_mass, day_work, kernel = np.eye(1, steps + 2)[0], np.zeros(steps + 2), days.first
+        else:
+            day_mass, day_work, kernel = mass[n], work[n], days.kernel(n)
+        for taken, share, earned in zip(*kernel):
+            moved_mass, moved_work = day_mass * share, day_work * share + day_mass * earned
+            left = n - int(taken)
+            if left == 0:
+                score += float(np.sum(moved_work / (steps + sleep_time * sleeps_so_far)))
+                sleeps += float(np.sum(moved_mass * sleeps_so_far))
+            else:
+                mass[left - 1, 1:] += moved_mass[:-1]
+                work[left - 1, 1:] += moved_work[:-1]
+    return score, sleeps
+
+
+def _short_or_long_days(alertness: np.ndarray, t: np.ndarray, n: int) -> np.ndarray:
+    """Sleep at once after waking below 1.0, else work until alertness -1: sleeps vary a lot between episodes."""
+    return np.where(alertness[:, :1] < 1.0, t >= 1, alertness < -1.0)
+
+
+@pytest.mark.parametrize(
+    ("steps", "sleep_half_hours", "grid", "rule"),
+    [(1000, 16, 100, None), (5, 16, 50, _short_or_long_days), (60, 16, 50, _short_or_long_days), (40, 1, 50, None)],
+)
+def test_the_linear_pass_is_the_joint_law_of_sleeps(steps, sleep_half_hours, grid, rule) -> None:
+    """The score's pass integrates 1 / time instead of carrying the law of the sleeps so far: the same figures
+    to rounding, for the optimum's days and for a rule whose time varies by a factor of three."""
+    from heartpole.optimum.days import episode_outcome
+    from heartpole.optimum.sleep import _DayModel
+
+    params = Params(max_steps=steps, sleep_half_hours=sleep_half_hours)
+    model = _DayModel(params, grid)
+    days = model.follow(rule) if rule is not None else model.backward(0.3268).days
+    outcome = episode_outcome(days, steps, sleep_half_hours)
+    score, sleeps = _joint_law_outcome(days, steps, sleep_half_hours)
+    assert outcome.score == pytest.approx(score, rel=1e-14, abs=0)
+    assert outcome.sleeps == pytest.approx(sleeps, rel=1e-12)
+    assert outcome.time == pytest.approx(steps + sleep_half_hours * sleeps, rel=1e-12)
+
+
+def test_stopping_where_the_policy_settles_changes_nothing(monkeypatch) -> None:
+    """A backward pass that never stops (tolerance below zero) over 3,000 decisions: the same thresholds, the
+    settled row for every n beyond the stop, the same rate and score to rounding."""
+    from heartpole.optimum import common
+
+    params = Params(max_steps=3000)
+    settled = solve_params(params, 100)
+    monkeypatch.setattr(common, "SETTLE_TOLERANCE", -1.0)
+    full = solve_params(params, 100)
+    rows = len(settled.thresholds)
+    assert rows < 1500 and full.thresholds.shape == (3001, settled.thresholds.shape[1])
+    np.testing.assert_allclose(full.thresholds[:rows], settled.thresholds, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        full.thresholds[rows:], np.broadcast_to(settled.thresholds[-1], (3001 - rows, 73)), atol=1e-9
+    )
+    assert settled.rate == pytest.approx(full.rate, rel=1e-12)
+    assert settled.expected_score == pytest.approx(full.expected_score, rel=1e-13)
+    assert settled.expected_sleeps == pytest.approx(full.expected_sleeps, rel=1e-12)
+
+
+def test_a_million_decisions_take_little_memory_and_a_small_cache(tmp_path, monkeypatch) -> None:
+    """Issue 24: 10,000 decisions took 800 MB and 100,000 would take 75 GB. Now a million are solved (grids of 400
+    and 200, the coffee check), cached and loaded in a few MB, with the grid error of 1,000 decisions."""
+    monkeypatch.setenv("HEARTPOLE_CACHE_DIR", str(tmp_path))
+    sleep_rule_value(Params(max_steps=5), lambda a, t, n: a < 0.3, grid=4)  # loads the compiled pass first
+    tracemalloc.start()
+    try:
+        solution = optimum("HeartPole-v0", {"max_steps": 1_000_000})
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 25e6, f"{peak / 1e6:.0f} MB"  # measured: 10 MB
+    assert solution.error_bound < 1e-6 and len(solution.thresholds) < 2000
+    assert solution.expected_heart_attacks == pytest.approx(1e6 * 0.5 / (1 + math.exp(6)), rel=1e-12)
+    assert 0.3244 < solution.expected_score < 0.3245  # the long-run rate; the end-game hardly counts
+    files = list((tmp_path / "optimum").glob("*/optimum.*"))
+    assert len(files) == 2 and sum(f.stat().st_size for f in files) < 200_000
+    loaded = OptimumSolution.load(files[0].parent)
+    assert loaded.summary() == solution.summary()
+    # far from the end the policy sleeps by the settled row: where expert does, about alertness 0.37
+    far = solution.sleeps(np.array([0.36, 0.39]), np.array([15, 15]), 999_999)
+    assert far.tolist() == [True, False]
+
+
+def test_regret_at_a_long_horizon() -> None:
+    """Issue 24's call: 4 episodes of 100,000 steps used to end in a 75 GB allocation; now with their regret."""
+    result = heartpole.evaluate("expert", env_id="HeartPole-v0", episodes=4, seed=0, env_kwargs={"max_steps": 100_000})
+    assert result.no_regret_reason is None and math.isfinite(result.regret)
+    assert result.regret_ci95[0] < result.regret < result.regret_ci95[1]
+    assert abs(result.regret) < 0.01  # expert is near the optimum at every horizon
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -44,11 +44,18 @@ from heartpole.policies import (
     policy_name,
     quiet_version_warnings,
 )
-from heartpole.stats import confidence_interval, t_quantile_975
+from heartpole.reporting import PUBLISHED_EPISODES as PUBLISHED_EPISODES
+from heartpole.reporting import PUBLISHED_TABLE1 as PUBLISHED_TABLE1
+from heartpole.reporting import json_interval, json_number
+from heartpole.reporting import plus_minus as plus_minus
+from heartpole.reporting import published_rows as published_rows
+from heartpole.reporting import table_rows as table_rows
+from heartpole.stats import confidence_interval
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
 
+    from heartpole.optimum import OptimumSolution
     from heartpole.vector import HeartPoleVectorEnv
 
 DEFAULT_EPISODES = 2000
@@ -73,26 +80,6 @@ previous bar (heart attacks <= 1.30 and score >= 0.30) let through a regret of u
 PolicyLike = Policy | str
 Progress = Callable[[int], None]
 
-PUBLISHED_TABLE1: tuple[tuple[str, str, float], ...] = (
-    ("CEM", "linear (0 hidden)", -524.12),
-    ("CEM", "3x16", -523.88),
-    ("SARSA", "linear", -130.9),
-    ("SARSA", "3x16", -134.95),
-    ("DQN", "linear", -119.95),
-    ("DQN", "3x16", -84.96),
-    ("reference: sleep every night, then a cup of coffee", "-", -119.76),
-)
-"""Table 1 of the HEALTHINF abstract on HeartPole: (algorithm, model, mean return over 20 episodes)."""
-PUBLISHED_EPISODES = 20
-
-
-def _finite(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
-
-
-def _pair(interval: tuple[float, float]) -> list[float | None]:
-    return [_finite(interval[0]), _finite(interval[1])]
-
 
 # ------------------------------------------------------------------------------------------------------
 # results
@@ -104,7 +91,9 @@ class EvaluationResult:
 
     ``mean_return`` is the realized mean return; ``expected_return`` the expected-risk estimate of the same
     quantity (final score - 100 x the summed heart-attack probabilities). ``score`` is the mean final
-    ``work_done / time_elapsed``. Per-episode arrays (float64 or int64) are in episode order.
+    ``work_done / time_elapsed``. Per-episode arrays (float64 or int64) are in episode order. With fewer
+    than two episodes the intervals are ``nan``; without an optimum the regret is, and ``no_regret_reason``
+    says why.
     """
 
     policy: str
@@ -135,6 +124,7 @@ class EvaluationResult:
     optimal_return: float = math.nan
     regret: float = math.nan
     regret_ci95: tuple[float, float] = (math.nan, math.nan)
+    no_regret_reason: str | None = None
 
     def with_regret(self, optimal_return: float, error_bound: float = 0.0) -> EvaluationResult:
         """This result with its regret: ``optimal_return`` minus the expected-risk return.
@@ -181,7 +171,8 @@ class EvaluationResult:
 
     @property
     def width_ratio(self) -> float:
-        """How many times narrower the expected-risk interval is than the realized one."""
+        """How many times narrower the expected-risk interval is than the realized one (``inf`` where the
+        expected-risk return is the same in every episode, ``nan`` with fewer than two episodes)."""
         expected = self.expected_ci95[1] - self.expected_ci95[0]
         realized = self.ci95[1] - self.ci95[0]
         return realized / expected if expected > 0 else math.inf
@@ -195,21 +186,22 @@ class EvaluationResult:
             "seed": self.seed,
             "num_envs": self.num_envs,
             "max_steps": self.max_steps,
-            "mean_return": _finite(self.mean_return),
-            "ci95": _pair(self.ci95),
-            "expected_return": _finite(self.expected_return),
-            "expected_ci95": _pair(self.expected_ci95),
-            "heart_attacks_per_episode": _finite(self.heart_attacks_per_episode),
-            "heart_attacks_ci95": _pair(self.heart_attacks_ci95),
-            "expected_heart_attacks_per_episode": _finite(self.expected_heart_attacks_per_episode),
-            "score": _finite(self.score),
-            "score_ci95": _pair(self.score_ci95),
-            "drinks_per_episode": _finite(self.drinks_per_episode),
-            "sleeps_per_episode": _finite(self.sleeps_per_episode),
-            "optimal_return": _finite(self.optimal_return),
-            "regret": _finite(self.regret),
-            "regret_ci95": _pair(self.regret_ci95),
+            "mean_return": json_number(self.mean_return),
+            "ci95": json_interval(self.ci95),
+            "expected_return": json_number(self.expected_return),
+            "expected_ci95": json_interval(self.expected_ci95),
+            "heart_attacks_per_episode": json_number(self.heart_attacks_per_episode),
+            "heart_attacks_ci95": json_interval(self.heart_attacks_ci95),
+            "expected_heart_attacks_per_episode": json_number(self.expected_heart_attacks_per_episode),
+            "score": json_number(self.score),
+            "score_ci95": json_interval(self.score_ci95),
+            "drinks_per_episode": json_number(self.drinks_per_episode),
+            "sleeps_per_episode": json_number(self.sleeps_per_episode),
+            "optimal_return": json_number(self.optimal_return),
+            "regret": json_number(self.regret),
+            "regret_ci95": json_interval(self.regret_ci95),
             "solved": self.solved,
+            "no_regret_reason": self.no_regret_reason,
             "seconds": round(self.seconds, 3),
         }
         if per_episode:
@@ -267,12 +259,12 @@ class Comparison:
             "a": self.a.to_dict(),
             "b": self.b.to_dict(),
             "difference": {
-                "mean_return": _finite(self.difference),
-                "ci95": _pair(self.ci95),
-                "expected_return": _finite(self.expected_difference),
-                "expected_ci95": _pair(self.expected_ci95),
-                "score": _finite(self.score_difference),
-                "score_ci95": _pair(self.score_ci95),
+                "mean_return": json_number(self.difference),
+                "ci95": json_interval(self.ci95),
+                "expected_return": json_number(self.expected_difference),
+                "expected_ci95": json_interval(self.expected_ci95),
+                "score": json_number(self.score_difference),
+                "score_ci95": json_interval(self.score_ci95),
             },
             "env_id": self.a.env_id,
             "episodes": self.a.episodes,
@@ -326,7 +318,8 @@ def evaluate(
         progress: ``True`` for a progress bar on stderr (shown when stderr is a terminal), or a callable
             given the number of env steps done since its last call.
         regret: add the regret against :mod:`heartpole.optimum`'s optimum where the solver covers the env
-            (solved once per parameter set and cached; ``nan`` elsewhere).
+            (solved before the episodes run, once per parameter set, and cached; elsewhere ``nan``, with
+            ``no_regret_reason`` saying why).
 
     Raises:
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
@@ -342,6 +335,7 @@ def evaluate(
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     env_kwargs = dict(env_kwargs or {})
     act, name = _resolve(policy, env_id, env_kwargs, seed)
+    solution = _optimum(env_id, env_kwargs) if regret else None  # before the episodes: no failure loses them
     started = time.perf_counter()
     parts = []
     with _progress_callback(progress, f"evaluating {name}", episodes, env_id, env_kwargs) as tick:
@@ -358,17 +352,19 @@ def evaluate(
         max_steps=max_steps,
         seconds=time.perf_counter() - started,
     )
-    return _add_regret(result, env_id, env_kwargs) if regret else result
-
-
-def _add_regret(result: EvaluationResult, env_id: str, env_kwargs: Mapping[str, Any]) -> EvaluationResult:
-    """``result`` with its regret, if :mod:`heartpole.optimum` covers the env."""
-    from heartpole.optimum import available
-
-    solution = available(env_id, env_kwargs)
-    if solution is None:
-        return result
+    if solution is None or isinstance(solution, str):
+        return replace(result, no_regret_reason=solution)
     return result.with_regret(solution.expected_return, solution.error_bound)
+
+
+def _optimum(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:
+    """The optimum of the env (:func:`heartpole.optimum.optimum`), or why the solver does not cover it."""
+    from heartpole.optimum import NotCoveredError, optimum
+
+    try:
+        return optimum(env_id, env_kwargs)
+    except NotCoveredError as error:
+        return f"the optimum is not known here ({' '.join(str(error).split())})"
 
 
 class _SharedOptions(TypedDict):
@@ -398,6 +394,8 @@ def compare(
     >>> pair.a.policy, pair.b.policy, pair.expected_difference == pair.a.expected_return - pair.b.expected_return
     ('expert', 'nothing', True)
     """
+    for policy in (policy_a, policy_b):  # both checked before either runs: a bad ``b`` cannot waste ``a``
+        _resolve(policy, env_id, dict(env_kwargs or {}), seed)
     options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     a = evaluate(policy_a, env_id, episodes, seed, **options)
     b = evaluate(policy_b, env_id, episodes, seed, **options)
@@ -538,54 +536,3 @@ def _progress_callback(
 
 def _ignore(steps: int) -> None:
     """A progress callback that shows nothing."""
-
-
-def plus_minus(value: float, interval: tuple[float, float]) -> str:
-    """``value +- half-width`` with two significant digits in the half-width, e.g. ``-138.785 +- 0.078``."""
-    half = (interval[1] - interval[0]) / 2
-    if not math.isfinite(half):
-        return f"{value:.3f}"
-    if half == 0:
-        return f"{value:.4f} +- 0"
-    decimals = min(max(2 - math.ceil(math.log10(half)), 0), 8)
-    return f"{value:.{decimals}f} +- {half:.{decimals}f}"
-
-
-def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[object]]]:
-    """Headers and rows of the results table (best expected-risk return first), values as text."""
-    headers = [
-        "rank",
-        "policy",
-        "expected-risk return (95% CI)",
-        "regret (95% CI)",
-        "realized return (95% CI)",
-        "heart attacks / ep",
-        "score",
-        "drinks / ep",
-        "sleeps / ep",
-    ]
-    rows = [
-        [
-            n,
-            result.policy,
-            plus_minus(result.expected_return, result.expected_ci95),
-            plus_minus(result.regret, result.regret_ci95) if math.isfinite(result.regret) else "-",
-            plus_minus(result.mean_return, result.ci95),
-            f"{result.heart_attacks_per_episode:.3f}",
-            f"{result.score:.4f}",
-            f"{result.drinks_per_episode:.1f}",
-            f"{result.sleeps_per_episode:.1f}",
-        ]
-        for n, result in enumerate(rank(results), start=1)
-    ]
-    return headers, rows
-
-
-def published_rows(sd: float = 110.0) -> tuple[list[str], list[list[object]]]:
-    """Headers and rows of the published Table 1, with the 95% half-width its 20 episodes allow."""
-    half = t_quantile_975(PUBLISHED_EPISODES - 1) * sd / math.sqrt(PUBLISHED_EPISODES)
-    headers = ["algorithm", "model", f"mean return ({PUBLISHED_EPISODES} episodes)", "95% CI at sd 110"]
-    rows: list[list[object]] = [
-        [algo, model, f"{value:.2f}", f"+-{half:.0f}"] for algo, model, value in PUBLISHED_TABLE1
-    ]
-    return headers, rows

@@ -251,7 +251,7 @@ def _seed_trial(
     # Tune flattens nested metrics (intervals, the solved bar): the whole summary travels as JSON beside the
     # plain numbers the progress bar reads.
     numbers = {key: value for key, value in run.items() if isinstance(value, (int, float, bool))}
-    tune.report({**numbers, "run": json.dumps(run)})
+    tune.report({**numbers, "run": json.dumps(run, allow_nan=False)})
 
 
 def _run_of(metrics: Mapping[str, Any]) -> dict[str, Any]:

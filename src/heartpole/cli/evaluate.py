@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import functools
 import io
 import json
 import math
@@ -116,8 +115,8 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     """``heartpole evaluate``: one policy's result, as a table or JSON."""
-    result = _evaluate(args.policy, args)
-    print(json.dumps(result.to_dict()) if args.json else format_result(result))
+    result = _evaluate(args.policy, _policy(args.policy, args), args)
+    print(json.dumps(result.to_dict(), allow_nan=False) if args.json else format_result(result))
     return 0
 
 
@@ -127,29 +126,31 @@ def run_compare(args: argparse.Namespace) -> int:
 
     if len(args.policy) != 2:
         raise CommandError(f"compare needs exactly two --policy options, got {len(args.policy)}")
-    a, b = (_evaluate(spec, args) for spec in args.policy)
+    policies = [_policy(spec, args) for spec in args.policy]  # both checked before either runs
+    a, b = (_evaluate(spec, policy, args) for spec, policy in zip(args.policy, policies))
     comparison = _library(lambda: Comparison.of(a, b))
-    print(json.dumps(comparison.to_dict()) if args.json else format_comparison(comparison))
+    print(json.dumps(comparison.to_dict(), allow_nan=False) if args.json else format_comparison(comparison))
     return 0
 
 
 def run_baselines(args: argparse.Namespace) -> int:
     """``heartpole baselines``: every built-in and extra policy, printed and written as Markdown and CSV."""
     from heartpole.evaluation import rank
-    from heartpole.policies import BUILTIN_POLICIES, available_builtins, load_policy
+    from heartpole.policies import BUILTIN_POLICIES, available_builtins
 
     markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
-    for spec in extras:  # fail before the long run, not after it
-        _library(functools.partial(load_policy, spec, args.env))
+    loaded = {spec: _policy(spec, args) for spec in extras}  # fail before the long run, not after it
     builtins = _library(lambda: available_builtins(args.env))
-    results = rank(_evaluate(spec, args) for spec in [*builtins, *extras])
+    results = rank(_evaluate(spec, loaded.get(spec, spec), args) for spec in [*builtins, *extras])
+    if args.json:  # printed before the files are written: a failure writing them cannot lose the results
+        data = {"results": [r.to_dict() for r in results], "published": _published_dicts()}
+        print(json.dumps(data, allow_nan=False), flush=True)
+    else:
+        print(format_baselines(results), flush=True)
     _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))
     _library(lambda: atomic_write(csv_path, lambda path: _write_text(path, baselines_csv(results))))
-    if args.json:
-        print(json.dumps({"results": [r.to_dict() for r in results], "published": _published_dicts()}))
-    else:
-        print(format_baselines(results))
+    if not args.json:
         print(f"\nwrote {markdown_path} and {csv_path}")
     return 0
 
@@ -158,16 +159,25 @@ def run_baselines(args: argparse.Namespace) -> int:
 # running the library with clear errors
 
 
-def _evaluate(spec: str, args: argparse.Namespace) -> EvaluationResult:
-    """Evaluate ``spec`` with the run options of ``args``, a progress bar on stderr, errors as one line."""
+def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
+    """``spec`` checked before any episode runs: a built-in's name (:func:`~heartpole.evaluation.evaluate`
+    builds it with the run's seed), or the loaded model (the user hears which statistics it applies)."""
+    from heartpole.policies import BUILTIN_POLICIES, load_policy
+
+    policy = _library(lambda: load_policy(spec, args.env))
+    if spec in BUILTIN_POLICIES:
+        return spec
+    tell_normalization(policy)
+    return policy
+
+
+def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> EvaluationResult:
+    """Evaluate ``policy`` (from :func:`_policy`) with the run options of ``args``, a progress bar on stderr
+    named ``spec``, errors as one line."""
     from heartpole.evaluation import evaluate
-    from heartpole.policies import BUILTIN_POLICIES, env_dynamics, load_policy
+    from heartpole.policies import env_dynamics
 
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
-    policy: PolicyLike = spec
-    if spec not in BUILTIN_POLICIES:  # a model: loaded here, so the user hears which statistics it applies
-        policy = _library(lambda: load_policy(spec, args.env))
-        tell_normalization(policy)
     with progress(args.episodes * max_steps, f"{spec}") as bar:
         return _library(
             lambda: evaluate(policy, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
@@ -192,11 +202,27 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def _interval(value: float, interval: Sequence[float], digits: int) -> list[str]:
-    return [f"{value:.{digits}f}", f"[{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]"]
+    """``[value, "[low, high]"]`` as text; ``-`` for an interval that is missing (fewer than 2 episodes)."""
+    from heartpole.reporting import has_interval
+
+    shown = f"[{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]" if has_interval(interval) else "-"
+    return [f"{value:.{digits}f}", shown]
+
+
+def _joined(value: float, interval: Sequence[float], digits: int) -> str:
+    """``value [low, high]`` as one cell; the value alone without an interval."""
+    shown, ends = _interval(value, interval, digits)
+    return shown if ends == "-" else f"{shown} {ends}"
+
+
+def _episodes(count: int, what: str = "") -> str:
+    return f"{count} {what}episode{'' if count == 1 else 's'}"
 
 
 def format_result(result: EvaluationResult) -> str:
-    """One evaluation as a small table, with the interval-width ratio."""
+    """One evaluation as a small table, with the interval-width ratio and what is missing, in words."""
+    from heartpole.reporting import missing_notes
+
     rows = [
         ["expected-risk return (ranks)", *_interval(result.expected_return, result.expected_ci95, 4)],
         ["realized return", *_interval(result.mean_return, result.ci95, 2)],
@@ -209,13 +235,26 @@ def format_result(result: EvaluationResult) -> str:
     if math.isfinite(result.regret):
         rows.insert(1, ["regret (optimum - expected-risk return)", *_interval(result.regret, result.regret_ci95, 5)])
     header = (
-        f"{result.policy} on {result.env_id}: {result.episodes} episodes of {result.max_steps} steps, "
+        f"{result.policy} on {result.env_id}: {_episodes(result.episodes)} of {result.max_steps} steps, "
         f"seed {result.seed} ({result.seconds:.1f} s)"
     )
-    notes = [f"the expected-risk interval is {result.width_ratio:.0f}x narrower than the realized one"]
+    notes = [*_width_note(result), *missing_notes([result])]
     if result.solved is not None:
         notes.append(_solved_line(result))
     return "\n".join([header, format_table(["measure", "mean", "95% CI"], rows), *notes])
+
+
+def _width_note(result: EvaluationResult) -> list[str]:
+    """How much narrower the expected-risk interval is than the realized one, where both exist."""
+    from heartpole.reporting import has_interval
+
+    if result.episodes < 2 or not (has_interval(result.ci95) and has_interval(result.expected_ci95)):
+        return []
+    if result.expected_ci95[1] > result.expected_ci95[0]:
+        return [f"the expected-risk interval is {result.width_ratio:.0f}x narrower than the realized one"]
+    if result.ci95[1] > result.ci95[0]:
+        return ["the expected-risk return is the same in every episode: its interval has no width at all"]
+    return []
 
 
 def _solved_line(result: EvaluationResult) -> str:
@@ -229,26 +268,28 @@ def _solved_line(result: EvaluationResult) -> str:
 
 
 def format_comparison(comparison: Comparison) -> str:
-    """Two evaluations side by side and their paired difference."""
+    """Two evaluations side by side and their paired difference, and what is missing, in words."""
+    from heartpole.reporting import has_interval, missing_notes
+
     a, b = comparison.a, comparison.b
     rows = [
         [
             "expected-risk return",
-            " ".join(_interval(a.expected_return, a.expected_ci95, 4)),
-            " ".join(_interval(b.expected_return, b.expected_ci95, 4)),
-            " ".join(_interval(comparison.expected_difference, comparison.expected_ci95, 4)),
+            _joined(a.expected_return, a.expected_ci95, 4),
+            _joined(b.expected_return, b.expected_ci95, 4),
+            _joined(comparison.expected_difference, comparison.expected_ci95, 4),
         ],
         [
             "realized return",
-            " ".join(_interval(a.mean_return, a.ci95, 2)),
-            " ".join(_interval(b.mean_return, b.ci95, 2)),
-            " ".join(_interval(comparison.difference, comparison.ci95, 2)),
+            _joined(a.mean_return, a.ci95, 2),
+            _joined(b.mean_return, b.ci95, 2),
+            _joined(comparison.difference, comparison.ci95, 2),
         ],
         [
             "final score",
-            " ".join(_interval(a.score, a.score_ci95, 4)),
-            " ".join(_interval(b.score, b.score_ci95, 4)),
-            " ".join(_interval(comparison.score_difference, comparison.score_ci95, 4)),
+            _joined(a.score, a.score_ci95, 4),
+            _joined(b.score, b.score_ci95, 4),
+            _joined(comparison.score_difference, comparison.score_ci95, 4),
         ],
     ]
     if math.isfinite(a.regret) and math.isfinite(b.regret):
@@ -257,34 +298,38 @@ def format_comparison(comparison: Comparison) -> str:
             1,
             [
                 "regret",
-                " ".join(_interval(a.regret, a.regret_ci95, 5)),
-                " ".join(_interval(b.regret, b.regret_ci95, 5)),
-                " ".join(_interval(-comparison.expected_difference, (-high, -low), 5)),
+                _joined(a.regret, a.regret_ci95, 5),
+                _joined(b.regret, b.regret_ci95, 5),
+                _joined(-comparison.expected_difference, (-high, -low), 5),
             ],
         )
-    half = [(ci[1] - ci[0]) / 2 for ci in (a.ci95, b.ci95, comparison.ci95)]
     header = (
-        f"{a.policy} - {b.policy} on {a.env_id}: {a.episodes} paired episodes of {a.max_steps} steps, "
+        f"{a.policy} - {b.policy} on {a.env_id}: {_episodes(a.episodes, 'paired ')} of {a.max_steps} steps, "
         f"seed {a.seed}, common random numbers"
     )
-    note = (
-        f"realized return: the paired interval is +-{half[2]:.2f}, "
-        f"against +-{half[0]:.2f} and +-{half[1]:.2f} for the two separate ones"
-    )
+    notes = missing_notes([a, b])
+    if all(has_interval(ci) for ci in (a.ci95, b.ci95, comparison.ci95)):
+        half = [(ci[1] - ci[0]) / 2 for ci in (a.ci95, b.ci95, comparison.ci95)]
+        notes.insert(
+            0,
+            f"realized return: the paired interval is +-{half[2]:.2f}, "
+            f"against +-{half[0]:.2f} and +-{half[1]:.2f} for the two separate ones",
+        )
     table = format_table(["measure (95% CI)", a.policy, b.policy, "difference (paired)"], rows)
-    return "\n".join([header, table, note])
+    return "\n".join([header, table, *notes])
 
 
 def format_baselines(results: Sequence[EvaluationResult]) -> str:
     """The results table and the published Table 1, for the terminal."""
-    from heartpole.evaluation import published_rows, table_rows
+    from heartpole.reporting import missing_notes, published_rows, table_rows
 
     first = results[0]
     return "\n".join(
         [
-            f"{first.env_id}: {first.episodes} episodes of {first.max_steps} steps per policy, seed {first.seed}",
+            f"{first.env_id}: {_episodes(first.episodes)} of {first.max_steps} steps per policy, seed {first.seed}",
             format_table(*table_rows(results)),
             *_optimal_note(results),
+            *missing_notes(results),
             "",
             "published Table 1 (HEALTHINF abstract, keras-rl, 20 test episodes)",
             format_table(*published_rows()),
@@ -294,15 +339,17 @@ def format_baselines(results: Sequence[EvaluationResult]) -> str:
 
 def _optimal_note(results: Sequence[EvaluationResult], markdown: bool = False) -> list[str]:
     """``optimal`` minus ``expert`` with its paired interval, and the regret bar, if both were evaluated."""
-    from heartpole.evaluation import SOLVED_REGRET, Comparison, plus_minus
+    from heartpole.evaluation import SOLVED_REGRET, Comparison
+    from heartpole.reporting import has_interval, plus_minus
 
     by_name = {result.policy: result for result in results}
     if "optimal" not in by_name or "expert" not in by_name:
         return []
     pair = Comparison.of(by_name["optimal"], by_name["expert"])
+    paired = " (paired 95% CI)" if has_interval(pair.expected_ci95) else ""
     lines = [
-        f"optimal - expert: {plus_minus(pair.expected_difference, pair.expected_ci95)} expected-risk return "
-        f"(paired 95% CI); regret = optimum {by_name['optimal'].optimal_return:.5f} minus the expected-risk "
+        f"optimal - expert: {plus_minus(pair.expected_difference, pair.expected_ci95)} expected-risk return"
+        f"{paired}; regret = optimum {by_name['optimal'].optimal_return:.5f} minus the expected-risk "
         f"return; solved: 95% upper bound of the regret <= {SOLVED_REGRET}"
     ]
     return ["", *lines] if markdown else lines
@@ -310,19 +357,20 @@ def _optimal_note(results: Sequence[EvaluationResult], markdown: bool = False) -
 
 def baselines_markdown(results: Sequence[EvaluationResult]) -> str:
     """The Markdown file written by ``heartpole baselines``."""
-    from heartpole.evaluation import PUBLISHED_EPISODES, published_rows, table_rows
+    from heartpole.reporting import PUBLISHED_EPISODES, missing_notes, published_rows, table_rows
 
     first = results[0]
     return "\n".join(
         [
             "# HeartPole baselines",
             "",
-            f"{first.env_id}, {first.episodes} episodes of {first.max_steps} steps per policy, seed {first.seed}. "
+            f"{first.env_id}, {_episodes(first.episodes)} of {first.max_steps} steps per policy, seed {first.seed}. "
             + PROTOCOL
             + " Ranked by the expected-risk return.",
             "",
             markdown_table(*table_rows(results)),
             *_optimal_note(results, markdown=True),
+            *(["", *missing_notes(results)] if missing_notes(results) else []),
             "",
             f"## Published Table 1 (HEALTHINF abstract, keras-rl, {PUBLISHED_EPISODES} test episodes)",
             "",
@@ -375,7 +423,7 @@ def baselines_csv(results: Sequence[EvaluationResult]) -> str:
 
 
 def _published_dicts() -> list[dict[str, Any]]:
-    from heartpole.evaluation import PUBLISHED_EPISODES, PUBLISHED_TABLE1
+    from heartpole.reporting import PUBLISHED_EPISODES, PUBLISHED_TABLE1
 
     return [
         {

@@ -162,7 +162,7 @@ def run_ope(args: argparse.Namespace) -> int:
         )
     )
     if args.json:
-        print(json.dumps(report.to_dict()))
+        print(json.dumps(report.to_dict(), allow_nan=False))
         return 0
     print(format_report(report))
     return 0

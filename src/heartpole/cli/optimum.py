@@ -86,7 +86,8 @@ def run_optimum(args: argparse.Namespace) -> int:
         raise CommandError(" ".join(str(error).split())) from None
     checks = _check(args, kwargs) if args.check else {}
     if args.json:
-        print(json.dumps({**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}))
+        data = {**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}
+        print(json.dumps(data, allow_nan=False))
     else:
         print(format_solution(solution, checks))
         if args.out:
@@ -122,6 +123,8 @@ def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, Evalua
 
 def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationResult]) -> str:
     """The solution's figures as a table, with the Monte-Carlo check if run."""
+    from heartpole.reporting import has_interval, missing_notes
+
     p = solution.params
     rows = [
         ["expected return (optimum)", f"{solution.expected_return:.5f}", f"+- {solution.error_bound:.1e} (grid)"],
@@ -133,17 +136,14 @@ def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationRe
         ["a coffee's best gain, any state", f"{solution.coffee_best_gain:.2f}", "units of work (< 0: never pays)"],
     ]
     for name, result in checks.items():
-        regret = f"regret {result.regret:.5f} [{result.regret_ci95[0]:.5f}, {result.regret_ci95[1]:.5f}]"
-        low, high = result.expected_ci95
-        interval = f"[{low:.5f}, {high:.5f}]; {regret}"
-        rows.append([f"{name} through the evaluator", f"{result.expected_return:.5f}", interval])
+        rows.append([f"{name} through the evaluator", f"{result.expected_return:.5f}", _check_note(result)])
     header = (
         f"{solution.env_id}{' ' + str(solution.env_kwargs) if solution.env_kwargs else ''}: {p.max_steps} decisions, "
         f"proclivity "
         f"{p.heart_attack_proclivity:g}, sleep {p.sleep_half_hours} half-hours, grid {solution.grid}"
     )
     lines = [header, format_table(["measure", "value", "note"], rows)]
-    if "optimal" in checks:
+    if "optimal" in checks and has_interval(checks["optimal"].expected_ci95):
         result = checks["optimal"]
         inside = solution.within(result.expected_ci95)
         lines.append(
@@ -151,4 +151,16 @@ def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationRe
             + ("contains" if inside else "does NOT contain")
             + " the solver's value"
         )
+    lines += missing_notes(list(checks.values()))
     return "\n".join(lines)
+
+
+def _check_note(result: EvaluationResult) -> str:
+    """The evaluator's 95% interval of the expected-risk return and the regret, if there are intervals."""
+    from heartpole.reporting import has_interval
+
+    if not has_interval(result.expected_ci95):
+        return f"regret {result.regret:.5f}"
+    low, high = result.expected_ci95
+    regret = f"regret {result.regret:.5f} [{result.regret_ci95[0]:.5f}, {result.regret_ci95[1]:.5f}]"
+    return f"[{low:.5f}, {high:.5f}]; {regret}"

@@ -266,7 +266,7 @@ def run_train(args: argparse.Namespace) -> int:
     except OSError as error:
         raise CommandError(f"cannot write {out}: {error.strerror or error}") from None
     if args.json:
-        print(json.dumps({"out": str(out), **result}))
+        print(json.dumps({"out": str(out), **result}, allow_nan=False))
     elif seeds is None:
         print(format_run(result))
         print(f"wrote {out}/: model.zip, heartpole.json, learning_curve.csv, evaluation.json"

@@ -146,7 +146,7 @@ def run_tune(args: argparse.Namespace) -> int:
     except ConnectionError as error:
         raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None
     if args.json:
-        print(json.dumps({"out": str(out), **summary}))
+        print(json.dumps({"out": str(out), **summary}, allow_nan=False))
     else:
         print(format_trials(summary))
         print(f"wrote {out}/: trials.csv, best_preset.json, tune_summary.json"

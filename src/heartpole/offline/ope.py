@@ -45,6 +45,7 @@ from heartpole.offline.behaviour import action_probabilities
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
 from heartpole.policies import Policy, load_policy, policy_name
+from heartpole.reporting import json_interval, json_number
 from heartpole.stats import confidence_interval
 
 ESTIMATORS = ("PDIS", "WPDIS", "FQE", "DR")
@@ -260,7 +261,12 @@ class OPEReport:
             "gamma": self.gamma,
             "expected_rewards": self.expected_rewards,
             "estimates": [
-                {"estimator": e.estimator, "value": e.value, "ci95": list(e.ci95), "error": self.error(e)}
+                {
+                    "estimator": e.estimator,
+                    "value": json_number(e.value),
+                    "ci95": json_interval(e.ci95),  # null without an interval (a dataset of one episode)
+                    "error": json_number(self.error(e)),
+                }
                 for e in self.estimates
             ],
             "truth": self.truth.to_dict(),

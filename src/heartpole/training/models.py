@@ -251,7 +251,7 @@ def detect_algorithm(path: str | Path) -> str:
         return _algorithm_from_sidecar(sidecar)
     data = _zip_data(path)
     policy_class = data.get("policy_class")
-    described = json.dumps(policy_class) if isinstance(policy_class, dict) else str(policy_class)
+    described = json.dumps(policy_class, allow_nan=False) if isinstance(policy_class, dict) else str(policy_class)
     if "dqn" in described.lower():
         return "dqn"
     if "ActorCriticPolicy" in described:

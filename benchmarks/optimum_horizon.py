@@ -1,0 +1,152 @@
+"""The optimum's time and memory against the horizon (issue 24): ``heartpole optimum --param max_steps=N
+--check 0`` for N from 1,000 to 1,000,000 decisions, each run in a fresh process with an empty solution cache.
+
+    python benchmarks/optimum_horizon.py                    # 1k, 10k, 100k, 1M decisions, 5 repeats: the table
+    python benchmarks/optimum_horizon.py --write            # also docs/tables/optimum-horizon.md, docs/optimum.md
+    python benchmarks/optimum_horizon.py --horizons 1000 100000 --repeats 3
+
+What is measured is what a user waits for: the command's wall time (Python's start, the imports, solving the
+grids of 400 and 200 points, the coffee check, writing the cache) and the peak resident memory of its
+process (``ru_maxrss`` of that one child, from ``os.wait4``). The machine is shared and noisy, so within each
+repeat the horizons run in turn, and every figure is the median and the range over the repeats. The
+1,000-decision horizon is the anchor: each run's time is also given as a ratio to the anchor's in the same
+repeat. A first run, not counted, makes sure numba's compiled pass is in its cache. ``heartpole --help``
+measured alike gives the start-up alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+TABLE = ROOT / "docs" / "tables" / "optimum-horizon.md"
+PAGE = ROOT / "docs" / "optimum.md"
+HORIZONS = (1_000, 10_000, 100_000, 1_000_000)
+ANCHOR = 1_000
+
+
+@dataclass(frozen=True)
+class Run:
+    """One command in a fresh process: its wall time, peak memory and what it left in the cache."""
+
+    seconds: float
+    peak_mb: float
+    rows: int = 0
+    cache_kb: float = 0.0
+    score: float = math.nan
+    error_bound: float = math.nan
+
+
+def run(argv: list[str], cache: Path) -> Run:
+    """Run ``python -m heartpole *argv`` with ``cache`` as its solution cache; fail loudly if it fails."""
+    env = {**os.environ, "HEARTPOLE_CACHE_DIR": str(cache), "HEARTPOLE_PROGRESS": "0"}
+    started = time.perf_counter()
+    child = subprocess.Popen(
+        [sys.executable, "-m", "heartpole", *argv], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+    _, status, usage = os.wait4(child.pid, 0)
+    seconds = time.perf_counter() - started
+    child.returncode = os.waitstatus_to_exitcode(status)
+    error = child.stderr.read().decode() if child.stderr else ""
+    if child.returncode:
+        raise SystemExit(f"heartpole {' '.join(argv)} failed ({child.returncode}): {error}")
+    peak = usage.ru_maxrss / 1024 if sys.platform != "darwin" else usage.ru_maxrss / 2**20  # kB or bytes
+    files = sorted(cache.glob("optimum/*/optimum.*"))
+    if not files:
+        return Run(seconds, peak)
+    summary = json.loads(files[0].read_text())  # optimum.json, then optimum.npz
+    with np.load(files[1]) as arrays:
+        rows = int(arrays["thresholds"].shape[0])
+    size = sum(path.stat().st_size for path in files) / 1024
+    return Run(seconds, peak, rows, size, summary["expected_score"], summary["error_bound"])
+
+
+def solve(horizon: int) -> Run:
+    """``heartpole optimum --param max_steps=horizon --check 0`` with an empty cache."""
+    with tempfile.TemporaryDirectory(prefix="heartpole-optimum-") as cache:
+        return run(["optimum", "--param", f"max_steps={horizon}", "--check", "0"], Path(cache))
+
+
+def spread(values: list[float], digits: int) -> str:
+    """``median (low-high)``."""
+    return f"{statistics.median(values):.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
+
+
+def table(runs: dict[int, list[Run]], startup: list[Run], repeats: int) -> str:
+    """The Markdown table of ``runs`` by horizon, ratios against the anchor's run of the same repeat."""
+    anchor = runs[ANCHOR]
+    lines = [
+        "| decisions | wall time, s | x the 1,000-decision time | peak memory, MB | expected score | error bound "
+        "| threshold rows | cache on disk |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for horizon, measured in runs.items():
+        ratios = [m.seconds / a.seconds for m, a in zip(measured, anchor)]
+        lines.append(
+            f"| {horizon:,} | {spread([m.seconds for m in measured], 1)} | {spread(ratios, 2)} "
+            f"| {spread([m.peak_mb for m in measured], 0)} | {measured[0].score:.5f} | {measured[0].error_bound:.1e} "
+            f"| {measured[0].rows:,} | {measured[0].cache_kb:.0f} kB |"
+        )
+    start = f"{spread([m.seconds for m in startup], 1)} s and {spread([m.peak_mb for m in startup], 0)} MB"
+    machine = (
+        f"{platform.machine()}, {os.cpu_count()} CPUs (shared), {platform.python_implementation()} "
+        f"{platform.python_version()}, numpy {np.__version__}"
+    )
+    return "\n".join(
+        [
+            f"<!-- generated by benchmarks/optimum_horizon.py --repeats {repeats} --write -->",
+            *lines,
+            "",
+            f"Median (range) of {repeats} runs each, every run a fresh process with an empty cache; "
+            f"`heartpole --help` alone (Python's start-up and the command line, no solver): {start}. "
+            f"Machine: {machine}.",
+        ]
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--horizons", type=int, nargs="+", default=list(HORIZONS), metavar="N")
+    parser.add_argument("--repeats", type=int, default=5, metavar="R", help="runs of each horizon (default 5)")
+    parser.add_argument("--write", action="store_true", help=f"write {TABLE.relative_to(ROOT)} and its block in docs")
+    args = parser.parse_args()
+    horizons = sorted(set(args.horizons) | {ANCHOR})
+    solve(ANCHOR)  # not counted: the compiled pass is cached from here on
+    runs: dict[int, list[Run]] = {horizon: [] for horizon in horizons}
+    startup: list[Run] = []
+    for repeat in range(args.repeats):
+        with tempfile.TemporaryDirectory() as empty:
+            startup.append(run(["--help"], Path(empty)))
+        for horizon in horizons:
+            runs[horizon].append(solve(horizon))
+            done = runs[horizon][-1]
+            print(
+                f"repeat {repeat + 1}: {horizon:>9,} decisions {done.seconds:6.1f} s {done.peak_mb:5.0f} MB",
+                file=sys.stderr,
+            )
+    text = table(runs, startup, args.repeats)
+    print(text)
+    if args.write:
+        sys.path.insert(0, str(ROOT / "scripts"))
+        from readme_tables import with_tables
+
+        TABLE.write_text(text + "\n")
+        PAGE.write_text(with_tables(PAGE.read_text(), {"optimum-horizon": text + "\n"}))
+        print(f"wrote {TABLE.relative_to(ROOT)} and {PAGE.relative_to(ROOT)}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

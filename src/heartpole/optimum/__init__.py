@@ -1,0 +1,96 @@
+"""The true optimum of HeartPole-v0 by dynamic programming: the ceiling every policy's regret is measured from.
+
+What is solved. An episode's return telescopes to ``final score - penalty x heart attacks``, with the score
+``work_done / time_elapsed`` (fact 0's bookkeeping). The solver finds the policy that maximises the
+expected return of HeartPole-v0, with any of its :class:`~heartpole.model.Params` changed, in two steps:
+
+1. **Drinks never pay** (while ``heart_attack_proclivity * heart_attack_penalty > 0`` and the check below
+   passes). A step's heart-attack risk ``r(H) = proclivity * sigmoid(H - 6)`` is convex for ``H <= 6`` and
+   hypertension never exceeds ``0.3 * decay / (1 - decay)`` (9.7 for v0), so ``r(H) >= r(0) + r'(0) H``
+   on every reachable state. A drink adds ``h ~ U(0, 0.3)`` of hypertension, of which ``decay * h`` is still
+   there when its own step's coin is flipped: each drink costs at least
+   ``penalty * r'(0) * decay * 0.15`` = 0.0179 expected return on v0 (:func:`drink_floor`), whatever the
+   policy does. :func:`check_no_drinks` then bounds what a drink can buy (in the ratio-of-expectations
+   sense of step 2, where a unit of return is worth at least ``max_steps`` units of work) and refuses
+   parameters where the bound does not rule drinks out.
+2. **Only the sleep timing is left.** Without drinks hypertension stays 0, the heart-attack part is
+   fixed (``max_steps * r(0)`` expected attacks) and a day is deterministic once its waking alertness
+   ``w ~ U(wake_alertness)`` is drawn: at ``t`` half-hours after waking the alertness is
+   ``w - sum(alertness_decay(j) for j < t)``. The state is ``(decisions left n, w, t)``. The ratio
+   ``E[work] / E[time]`` is maximised by Dinkelbach's method: for a rate ``lam`` the dynamic program
+   maximises ``E[work - lam * time]``; ``lam <- E[work] / E[time]`` of its policy, until the maximum is 0.
+
+Discretisation. ``t`` and ``n`` are exact integers. ``w`` is a midpoint grid of ``grid`` points on
+``wake_alertness``; every decision on the grid is exact for its ``w`` (the day is deterministic), and the
+only approximation is the expectation over the next waking alertness (the midpoint rule, error
+``O(1/grid**2)``). Days are cut at ``max_awake`` half-hours, where productivity is so negative that a sleep
+pays even on the last decision (checked). The reported expected score is the exact ``E[work / time]`` of
+the grid policy, computed by a forward pass over days and sleeps (``time = max_steps + sleep_half_hours
+x sleeps``); ``error_bound`` is the change of the expected return between ``grid // 2`` and ``grid``.
+
+Long horizons. Far from the end the policy settles into a stationary one (on v0 to rounding within about
+1,200 decisions of the end): the backward pass stops there, the expected work and time of the decisions
+beyond grow by the settled gain, and the thresholds of the settled row serve every ``n`` above it. The
+forward pass carries only a window of sleeps so far around its mean, and goes day by day where the days
+have settled. Memory stays small (tens of MB at a million decisions) and time grows with the horizon only
+through the forward pass (see docs/optimum.md for measurements).
+
+What it does not cover, refused with a clear error: action sets other than v0's four (HeartPole-v1's
+naps, tea, exercise and cannabis), extra state variables, ``heart_attack_proclivity = 0`` or
+``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where
+:func:`check_no_drinks` cannot rule drinks out. The solved policy sees ``(n, alertness, t)``, not the work
+and sleeps so far; an exact ``E[work / time]`` optimum would also condition on those, which the issue's
+independent solver measured to be worth about 1e-5 of return.
+
+Also here: :func:`sleep_rule_value`, the exact expected return of any no-drink sleep rule (``expert``'s
+regret without sampling), and :func:`solve_drinking`, a grid DP for ``heart_attack_proclivity=0``, where
+drinking pays: its stationary policy is a lower bound and its whole-episode value an upper bound on the grid,
+not a certified optimum.
+
+Layout: :mod:`.solution` (the solution, the entry points, the cache), :mod:`.sleep` (the sleep-timing
+program), :mod:`.days` (the days of a policy and the exact expected score), :mod:`.drinks` (why drinks
+never pay), :mod:`.drinking` (proclivity 0), :mod:`.common` (what they share).
+"""
+
+from __future__ import annotations
+
+from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError
+from .drinking import (
+    DRINKING_ACTIONS,
+    NEVER,
+    DrinkingGrid,
+    DrinkingSolution,
+    drinking_rule_value,
+    solve_drinking,
+)
+from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_drinks, coffee_check, drink_floor
+from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
+from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
+
+__all__ = [
+    "COFFEE_CHECK_ALERTNESS",
+    "DEFAULT_GRID",
+    "DRINKING_ACTIONS",
+    "MAX_DINKELBACH_ITERATIONS",
+    "NEVER",
+    "SOLVER_VERSION",
+    "DrinkingGrid",
+    "DrinkingSolution",
+    "GridSolution",
+    "NotCoveredError",
+    "OptimumSolution",
+    "available",
+    "cache_dir",
+    "check_beer",
+    "check_coffee",
+    "check_no_drinks",
+    "coffee_check",
+    "drink_floor",
+    "drinking_rule_value",
+    "optimum",
+    "optimum_for",
+    "sleep_rule_value",
+    "solve",
+    "solve_drinking",
+    "solve_params",
+]

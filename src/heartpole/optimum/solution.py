@@ -1,0 +1,286 @@
+"""The solved optimum of a variant (:class:`OptimumSolution`), the public entry points, and the cache."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+import numpy as np
+
+from heartpole.model import Params, check_integer, heart_attack_risk
+
+from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
+from .drinks import check_beer, check_coffee, check_covered, drink_floor
+from .sleep import solve_params
+
+if TYPE_CHECKING:
+    from heartpole.dynamics import Dynamics
+
+
+@dataclass(frozen=True)
+class OptimumSolution:
+    """The optimal sleep rule of a HeartPole variant and its expected return.
+
+    Attributes:
+        env_id, env_kwargs: the env solved.
+        params: its :class:`~heartpole.model.Params`.
+        grid: midpoint-grid points of the waking alertness.
+        rate: Dinkelbach's optimal ``E[work] / E[time]`` on the grid.
+        expected_score: the exact ``E[work / time]`` of the grid policy.
+        expected_heart_attacks: ``max_steps * heart_attack_risk(0)``, the floor no policy beats.
+        expected_return: ``expected_score - heart_attack_penalty * expected_heart_attacks``.
+        error_bound: ``|expected_return(grid) - expected_return(grid // 2)|``, the grid's error bound (the
+            midpoint rule converges as ``1/grid**2``, so the fine grid's error is about a third of it).
+        expected_sleeps: mean sleeps per episode of the optimal policy.
+        drink_floor: expected return each drink costs at least (:func:`drink_floor`).
+        coffee_best_gain: the most a coffee gains over the no-drink optimum in any state checked, in units of
+            work (:func:`coffee_check`; negative: coffee never pays).
+        thresholds: ``(rows, max_awake)`` alertness thresholds: with ``n`` decisions left and
+            ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
+            Far from the end the policy settles into a stationary one; the rows stop there and
+            ``n >= rows`` uses the last row (:meth:`thresholds_at` and :meth:`sleeps` do). About 1,000 rows
+            on v0 whatever the horizon (``max_steps + 1`` where the policy never settles).
+    """
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    params: Params
+    grid: int
+    rate: float
+    expected_score: float
+    expected_heart_attacks: float
+    expected_return: float
+    error_bound: float
+    expected_sleeps: float
+    drink_floor: float
+    coffee_best_gain: float
+    thresholds: np.ndarray = field(repr=False, compare=False)
+
+    @property
+    def max_awake(self) -> int:
+        """Half-hours awake after which the policy always sleeps."""
+        return int(self.thresholds.shape[1])
+
+    def thresholds_at(self, decisions_left: int | np.ndarray) -> np.ndarray:
+        """The rows of :attr:`thresholds` for ``decisions_left`` (any of 0..max_steps; shape ``(..., max_awake)``)."""
+        return self.thresholds[self._row(decisions_left)]
+
+    def sleeps(
+        self, alertness: np.ndarray, time_since_slept: np.ndarray, decisions_left: int | np.ndarray
+    ) -> np.ndarray:
+        """Whether the optimal policy sleeps, elementwise (no-drink states; ``decisions_left`` in 1..max_steps)."""
+        t = np.asarray(time_since_slept, dtype=np.int64)
+        inside = t < self.max_awake
+        threshold = self.thresholds[
+            np.broadcast_to(self._row(decisions_left), t.shape), np.minimum(t, self.max_awake - 1)
+        ]
+        return ~inside | (np.asarray(alertness, dtype=np.float64) < threshold)
+
+    def _row(self, decisions_left: int | np.ndarray) -> np.ndarray:
+        return np.clip(np.asarray(decisions_left, dtype=np.int64), 0, len(self.thresholds) - 1)
+
+    def within(self, interval: tuple[float, float]) -> bool:
+        """Whether :attr:`expected_return` lies in ``interval`` (an evaluator's 95% interval, say) widened by
+        the grid's :attr:`error_bound` on both sides."""
+        low, high = interval
+        return bool(low - self.error_bound <= self.expected_return <= high + self.error_bound)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-safe figures of the solution (no arrays)."""
+        return {
+            "env_id": self.env_id,
+            "env_kwargs": self.env_kwargs,
+            "params": params_dict(self.params),
+            "grid": self.grid,
+            "rate": self.rate,
+            "expected_score": self.expected_score,
+            "expected_heart_attacks": self.expected_heart_attacks,
+            "expected_return": self.expected_return,
+            "error_bound": self.error_bound,
+            "expected_sleeps": self.expected_sleeps,
+            "drink_floor": self.drink_floor,
+            "coffee_best_gain": self.coffee_best_gain,
+            "max_awake": self.max_awake,
+            "solver_version": SOLVER_VERSION,
+        }
+
+    def save(self, directory: str | Path) -> Path:
+        """Write ``optimum.json`` and ``optimum.npz`` into ``directory`` (created), each atomically."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        _atomic_write(directory / "optimum.npz", lambda handle: np.savez_compressed(handle, thresholds=self.thresholds))
+        text = json.dumps(self.summary(), indent=2, allow_nan=False) + "\n"
+        _atomic_write(directory / "optimum.json", lambda handle: handle.write(text.encode()))
+        return directory
+
+    @classmethod
+    def load(cls, directory: str | Path) -> OptimumSolution:
+        """Read a solution saved by :meth:`save`.
+
+        Raises:
+            FileNotFoundError: a missing file.
+            ValueError: files that are not a solution of this solver version.
+        """
+        directory = Path(directory)
+        for name in ("optimum.json", "optimum.npz"):
+            if not (directory / name).is_file():
+                raise FileNotFoundError(f"{directory / name} not found; save a solution with OptimumSolution.save")
+        try:
+            meta = json.loads((directory / "optimum.json").read_text())
+            with np.load(directory / "optimum.npz") as arrays:
+                thresholds = np.asarray(arrays["thresholds"], dtype=np.float64)
+            if meta.get("solver_version") != SOLVER_VERSION:
+                raise ValueError(f"solver version {meta.get('solver_version')}, expected {SOLVER_VERSION}")
+            params = Params(**{**meta["params"], "wake_alertness": tuple(meta["params"]["wake_alertness"])})
+            fields = ("rate", "expected_score", "expected_heart_attacks", "expected_return", "error_bound")
+            return cls(
+                env_id=meta["env_id"],
+                env_kwargs=meta["env_kwargs"],
+                params=params,
+                grid=int(meta["grid"]),
+                expected_sleeps=float(meta["expected_sleeps"]),
+                drink_floor=float(meta["drink_floor"]),
+                coffee_best_gain=float(meta["coffee_best_gain"]),
+                thresholds=thresholds,
+                **{key: float(meta[key]) for key in fields},
+            )
+        except (KeyError, TypeError, ValueError, OSError) as error:
+            raise ValueError(f"{directory}: not a HeartPole optimum ({' '.join(str(error).split())})") from None
+
+
+# ------------------------------------------------------------------------------------------------------
+# the public entry points
+
+
+def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwargs: Any) -> OptimumSolution:
+    """Solve the optimal policy of ``env_id`` built with ``env_kwargs`` (see the module docstring).
+
+    Args:
+        env_id: a registered HeartPole id whose dynamics are v0's (actions and variables).
+        grid: midpoint-grid points of the waking alertness (>= 4); the error bound compares ``grid // 2``.
+        env_kwargs: the env's keyword arguments (``heart_attack_proclivity``, ``max_steps``, ...).
+
+    Raises:
+        NotCoveredError: a variant the solver does not cover (the message says why).
+        ValueError: an unknown env or bad arguments.
+    """
+    from heartpole.policies import env_dynamics
+
+    check_integer("grid", grid, 4)
+    dynamics = env_dynamics(env_id, env_kwargs)
+    check_covered(env_id, dynamics)
+    return _solve(dynamics.params, int(grid), env_id, dict(env_kwargs))
+
+
+def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -> OptimumSolution:
+    check_beer(params)
+    fine = solve_params(params, grid)
+    coffee = check_coffee(params, fine.rate)
+    coarse = solve_params(params, grid // 2)
+    attacks = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
+    return OptimumSolution(
+        env_id=env_id,
+        env_kwargs=env_kwargs,
+        params=params,
+        grid=grid,
+        rate=fine.rate,
+        expected_score=fine.expected_score,
+        expected_heart_attacks=attacks,
+        expected_return=fine.expected_score - params.heart_attack_penalty * attacks,
+        error_bound=abs(fine.expected_score - coarse.expected_score),
+        expected_sleeps=fine.expected_sleeps,
+        drink_floor=drink_floor(params),
+        coffee_best_gain=coffee["coffee_best_gain"],
+        thresholds=fine.thresholds,
+    )
+
+
+def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> OptimumSolution:
+    """The solution for ``env_id`` and ``env_kwargs``, solved once: kept in memory and in the user cache.
+
+    The disk cache lives in ``$HEARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/heartpole``, else
+    ``~/.cache/heartpole``, under ``optimum/<hash of the parameters and solver version>/``.
+
+    Raises:
+        NotCoveredError, ValueError: as :func:`solve`.
+    """
+    from heartpole.policies import env_dynamics
+
+    kwargs = dict(env_kwargs or {})
+    return optimum_for(env_dynamics(env_id, kwargs), env_id, kwargs)
+
+
+def optimum_for(
+    dynamics: Dynamics, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
+) -> OptimumSolution:
+    """:func:`optimum` for a :class:`~heartpole.dynamics.Dynamics` (``env_id`` and ``env_kwargs`` label it)."""
+    check_covered(env_id, dynamics)
+    solution = _cached(dynamics.params, str(cache_dir()))
+    if isinstance(solution, NotCoveredError):
+        raise NotCoveredError(str(solution))
+    return replace(solution, env_id=env_id, env_kwargs=dict(env_kwargs or {}))
+
+
+def available(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> OptimumSolution | None:
+    """:func:`optimum`, or ``None`` for a variant the solver does not cover."""
+    try:
+        return optimum(env_id, env_kwargs)
+    except NotCoveredError:
+        return None
+
+
+@functools.lru_cache(maxsize=32)
+def _cached(params: Params, cache_root: str) -> OptimumSolution | NotCoveredError:
+    """The solution of ``params`` from memory, the disk cache or a fresh solve; a refusal is kept too."""
+    key = hashlib.sha256(
+        json.dumps([SOLVER_VERSION, DEFAULT_GRID, params_dict(params)], sort_keys=True).encode()
+    ).hexdigest()[:16]
+    directory = Path(cache_root) / "optimum" / key
+    try:
+        solution = OptimumSolution.load(directory)
+        if solution.params == params and solution.grid == DEFAULT_GRID:
+            return solution
+    except (FileNotFoundError, ValueError):
+        pass
+    try:
+        solution = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params))
+    except NotCoveredError as error:
+        return error
+    try:
+        solution.save(directory)
+    except OSError:  # a read-only home still gets the solution, just not cached on disk
+        pass
+    return solution
+
+
+def cache_dir() -> Path:
+    """Where solutions are cached on disk (see :func:`optimum`)."""
+    if os.environ.get("HEARTPOLE_CACHE_DIR"):
+        return Path(os.environ["HEARTPOLE_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "heartpole"
+
+
+def _changed_params(params: Params) -> dict[str, Any]:
+    """The env keyword arguments that give ``params``: the fields that differ from the defaults."""
+    defaults = params_dict(Params())
+    return {key: value for key, value in params_dict(params).items() if defaults[key] != value}
+
+
+def _atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> None:
+    """Write ``path`` through a temporary file in the same folder, moved into place when complete."""
+    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False)
+    try:
+        with handle:
+            write(handle)
+        os.replace(handle.name, path)
+    except BaseException:
+        Path(handle.name).unlink(missing_ok=True)
+        raise
