@@ -85,8 +85,11 @@ def _cacheable() -> bool:
     return True
 
 
+CACHE = _cacheable()
+"""Whether numba caches compiled code on disk here: every ``njit`` of the package passes ``cache=CACHE``."""
+
 JIT: JitOptions = {
-    "cache": _cacheable(),
+    "cache": CACHE,
     "error_model": "numpy",
     "nogil": True,
     "fastmath": {"contract", "arcp"},

@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from heartpole.kernel import CACHE
+
 Kernel = tuple[np.ndarray, np.ndarray, np.ndarray]
 """A day's kernel: its lengths ``L`` (ascending), their probabilities and ``E[work of the day; L]``."""
 
@@ -146,7 +148,7 @@ def time_rule(longest: float) -> tuple[np.ndarray, np.ndarray]:
     return u, step * u * (1.0 + np.exp(-t))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)  # the kernel's choice: on disk where numba can write
 def _episode_sums(
     lengths: Any,
     probs: Any,
