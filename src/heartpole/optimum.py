@@ -48,14 +48,14 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from heartpole import files
 from heartpole.actions import V0_ACTIONS
 from heartpole.model import (
     V0_VARIABLES,
@@ -156,12 +156,12 @@ class OptimumSolution:
         }
 
     def save(self, directory: str | Path) -> Path:
-        """Write ``optimum.json`` and ``optimum.npz`` into ``directory`` (created), each atomically."""
+        """Write ``optimum.json`` and ``optimum.npz`` into ``directory`` (created), both or neither, atomically."""
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        _atomic_write(directory / "optimum.npz", lambda handle: np.savez_compressed(handle, thresholds=self.thresholds))
-        text = json.dumps(self.summary(), indent=2) + "\n"
-        _atomic_write(directory / "optimum.json", lambda handle: handle.write(text.encode()))
+        with files.atomic_files(directory / "optimum.npz", directory / "optimum.json") as (npz, summary):
+            with npz.open("wb") as handle:
+                np.savez_compressed(handle, thresholds=self.thresholds)
+            summary.write_text(json.dumps(self.summary(), indent=2) + "\n")
         return directory
 
     @classmethod
@@ -1029,18 +1029,6 @@ def _json_default(value: object) -> float | int | list[object]:
     if isinstance(value, tuple):
         return list(value)
     raise TypeError(f"cannot describe {value!r} as JSON")
-
-
-def _atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> None:
-    """Write ``path`` through a temporary file in the same folder, moved into place when complete."""
-    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False)
-    try:
-        with handle:
-            write(handle)
-        os.replace(handle.name, path)
-    except BaseException:
-        Path(handle.name).unlink(missing_ok=True)
-        raise
 
 
 __all__ = [
