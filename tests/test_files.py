@@ -241,7 +241,10 @@ def test_sigterm_and_sighup_stop_a_library_as_ctrl_c_would_once() -> None:
         policy = signal.getsignal(signal.SIGINT)
         with files.signals_as_ctrl_c():
             signal.signal(signal.SIGINT, graceful)  # installed by the library, never removed
-            signal.raise_signal(signal.SIGTERM)
+            try:
+                signal.raise_signal(signal.SIGTERM)
+            except files.Interrupted:
+                pytest.fail("SIGTERM raised at once, where Ctrl-C would let the library stop gracefully")
             assert stops == [signal.SIGINT] and files.received_signal() == signal.SIGTERM
             with pytest.raises(files.Interrupted):  # the second: at once
                 signal.raise_signal(signal.SIGHUP)
