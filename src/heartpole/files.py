@@ -78,20 +78,29 @@ def _swappable(handler: object) -> bool:
 
 
 @contextmanager
-def _handlers(handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]:
-    """``handler`` for each of :data:`SIGNALS` while the block runs (main thread only), then the previous ones."""
+def signal_handlers_kept() -> Iterator[None]:
+    """Put back the handlers of SIGINT, SIGTERM and SIGHUP when the block ends, for libraries that install
+    their own (``ray.init`` makes SIGTERM exit with status 1 at once)."""
     if not _main_thread():
         yield
         return
     previous = {s: signal.getsignal(s) for s in SIGNALS}
-    swapped = [s for s, h in previous.items() if _swappable(h)]
-    for s in swapped:
-        signal.signal(s, handler)
     try:
         yield
     finally:
-        for s in swapped:
-            signal.signal(s, previous[s])
+        for s, handler in previous.items():
+            if handler is not None:  # None: installed outside Python, cannot be put back
+                signal.signal(s, handler)
+
+
+@contextmanager
+def _handlers(handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]:
+    """``handler`` for each of :data:`SIGNALS` while the block runs (main thread only), then the previous ones."""
+    with signal_handlers_kept():
+        for s in SIGNALS if _main_thread() else ():
+            if _swappable(signal.getsignal(s)):
+                signal.signal(s, handler)
+        yield
 
 
 @contextmanager
@@ -144,22 +153,6 @@ def signals_deferred() -> Iterator[None]:
     finally:
         if pending:  # even when the block raised: the signal is never lost
             signal.raise_signal(pending[0])
-
-
-@contextmanager
-def signal_handlers_kept() -> Iterator[None]:
-    """Put back the handlers of SIGINT, SIGTERM and SIGHUP when the block ends, for libraries that install
-    their own (``ray.init`` makes SIGTERM exit with status 1 at once)."""
-    if not _main_thread():
-        yield
-        return
-    previous = {s: signal.getsignal(s) for s in SIGNALS}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            if _swappable(handler):
-                signal.signal(s, handler)
 
 
 @contextmanager
