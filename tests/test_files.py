@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -250,3 +251,18 @@ def test_sigterm_and_sighup_stop_a_library_as_ctrl_c_would_once() -> None:
                 signal.raise_signal(signal.SIGHUP)
         assert signal.getsignal(signal.SIGINT) is policy  # the library's handler is gone
     assert files.exit_code() == 143
+
+
+@needs_signals
+def test_a_signal_that_lands_where_python_ignores_exceptions_is_not_lost() -> None:
+    class Finalized:
+        def __del__(self) -> None:
+            signal.raise_signal(signal.SIGTERM)  # the handler runs here, where a raise is only printed
+
+    with pytest.raises(files.Interrupted) as raised, files.signal_policy():
+        Finalized()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:  # the main thread's next steps
+            time.sleep(0.001)
+        pytest.fail("the signal was lost in __del__")
+    assert raised.value.signum == signal.SIGTERM and files.exit_code() == 143

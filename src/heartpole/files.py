@@ -24,10 +24,12 @@ nothing from HeartPole.
 
 from __future__ import annotations
 
+import _thread
 import json
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterator
@@ -109,11 +111,35 @@ def signal_policy() -> Iterator[None]:
 
     The ``heartpole`` command runs inside this: every ``finally`` and context manager on the way out runs
     (staging folders and temporary files are removed, Ray is shut down), then the command exits with
-    :func:`exit_code`. The handlers from before are restored at the end. Ignored signals stay ignored.
+    :func:`exit_code`. The handlers from before are restored at the end. Ignored signals stay ignored. An
+    :class:`Interrupted` raised where Python ignores exceptions (a ``__del__``) is delivered again.
     """
     _received.clear()
-    with _handlers(_raise):
-        yield
+    hook = sys.unraisablehook
+    sys.unraisablehook = _redeliver(hook)
+    try:
+        with _handlers(_raise):
+            yield
+    finally:
+        sys.unraisablehook = hook
+
+
+def _redeliver(hook: Callable[[Any], object]) -> Callable[[Any], None]:
+    """An unraisable hook that delivers again a signal whose :class:`Interrupted` was raised where Python
+    ignores exceptions (in a ``__del__`` or a weakref callback, where a signal handler may run), so that
+    it is not lost. From another thread, a moment later: delivered at once, it would be raised in this hook,
+    where it would be ignored again."""
+
+    def unraisable(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, Interrupted):
+            again = signal.Signals(unraisable.exc_value.signum)
+            timer = threading.Timer(0.01, _thread.interrupt_main, (again,))
+            timer.daemon = True
+            timer.start()
+        else:
+            hook(unraisable)
+
+    return unraisable
 
 
 def received_signal() -> int | None:

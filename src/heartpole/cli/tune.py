@@ -142,7 +142,9 @@ def run_tune(args: argparse.Namespace) -> int:
         for failure in error.failures:
             print(failure.line(), file=sys.stderr)
         raise CommandError(f"every trial failed; see {out / scale.TRIALS_FILE}") from None
-    except scale.SearchInterruptedError:  # Ctrl-C, SIGTERM or SIGHUP, and the search can resume
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM or SIGHUP: --out holds the search to resume, or what it held
+        if args.force or not scale.can_resume(out):  # with --force, the earlier search is back as it was
+            raise
         print(f"heartpole tune: interrupted; continue with: heartpole tune --resume --out {out}", file=sys.stderr)
         return files.exit_code()
     except ConnectionError as error:
