@@ -94,5 +94,5 @@ def test_sigterm_while_recording_leaves_nothing(minari_folder):
         time.sleep(0.01)  # the temporary folder appears when the dataset is being written
     process.send_signal(signal.SIGTERM)
     _, err = process.communicate(timeout=60)
-    assert process.returncode == 130, err
+    assert process.returncode == 143, err
     assert [p for p in minari_folder.rglob("*") if p.is_file()] == []

@@ -342,4 +342,5 @@ def test_a_search_folder_is_checked_before_any_trial(tmp_path: Path) -> None:
         scale.prepare_search_folder(other, resume=True, force=True)
     assert (other / "keep.txt").is_file()  # nothing but a search is ever removed
     (other / scale.SEARCH_SETTINGS_FILE).write_text("{}")
-    assert scale.prepare_search_folder(other, force=True) == other.resolve() and not other.exists()
+    assert scale.prepare_search_folder(other, force=True) == other.resolve()
+    assert sorted(os.listdir(other)) == ["keep.txt", scale.SEARCH_SETTINGS_FILE]  # replaced only when a search is done

@@ -22,20 +22,20 @@ A trial that raises is reported as one :class:`TrialFailure` line and the others
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import logging
 import math
 import os
 import re
-import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from heartpole import training
+from heartpole import files, training
 from heartpole.progress import Progress
 
 RAY_EXTRA = "pip install 'heartpole[ray]'"
@@ -106,17 +106,14 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     if ray.is_initialized():
         yield
         return
-    ray.init(
-        address=address,
-        num_cpus=num_cpus if address is None else None,
-        include_dashboard=False,
-        logging_level=logging.ERROR,
-        log_to_driver=False,
-    )
+    with files.signal_handlers_kept():  # not Ray's SIGTERM handler (exit status 1, no cleanup of ours)
+        ray.init(address=address, num_cpus=num_cpus if address is None else None, include_dashboard=False,
+                 logging_level=logging.ERROR, log_to_driver=False)  # fmt: skip
     try:
         yield
     finally:
-        ray.shutdown()
+        with files.signals_deferred():  # the workers end before anything cleans up after them
+            ray.shutdown()
 
 
 @contextmanager
@@ -204,7 +201,7 @@ def _failure(result: tune.Result, label: str) -> TrialFailure:
 
 def _fit(tuner: tune.Tuner, bar: _Bar) -> list[tune.Result]:
     """Run ``tuner``; its results in Tune's order (a ``ResultGrid`` is indexed, its stubs declare no iterator)."""
-    with _quiet_tune():
+    with _quiet_tune(), files.signals_as_ctrl_c():  # SIGTERM, SIGHUP: Tune stops its trials as on Ctrl-C
         try:
             grid = tuner.fit()
         finally:
@@ -282,7 +279,7 @@ def train_seeds_ray(
 
     Raises:
         AllTrialsFailedError: every seed failed (nothing is aggregated or written).
-        KeyboardInterrupt: Ctrl-C stopped the trials (Tune catches it and stops them first).
+        KeyboardInterrupt: a signal (Ctrl-C, SIGTERM, SIGHUP) stopped the trials; Tune stops them first.
     """
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
@@ -304,7 +301,7 @@ def train_seeds_ray(
         {"cpu": cpus_per_trial},
     )
     bar = _Bar(len(seeds), "seeds", "expected_return", None if on_run is None else lambda m: on_run(_run_of(m)))
-    with ray_session(address, num_cpus), tempfile.TemporaryDirectory(prefix="heartpole-tune-") as storage:
+    with tempfile.TemporaryDirectory(prefix="heartpole-tune-") as storage, ray_session(address, num_cpus):
         tuner = tune.Tuner(
             trainable,
             param_space={"seed": tune.grid_search(seeds)},
@@ -314,7 +311,7 @@ def train_seeds_ray(
         runs, failures = {}, []
         for result in grid:
             if result.error is None and "expected_return" not in (result.metrics or {}):
-                raise KeyboardInterrupt  # Tune stopped the trial before it finished: Ctrl-C
+                raise files.interruption()  # Tune stopped the trial before it finished: a signal
             seed = int((result.config or {})["seed"])
             if result.error is not None:
                 failures.append(_failure(result, f"seed {seed}"))
@@ -327,7 +324,7 @@ def train_seeds_ray(
     )
     if failures:
         summary["failed"] = [f.to_dict() for f in sorted(failures, key=lambda f: seeds.index(int(f.label[5:])))]
-    _write_json(folder / training.SUMMARY_FILE, summary)
+    files.write_json(folder / training.SUMMARY_FILE, summary)
     return summary
 
 
@@ -449,8 +446,8 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
     """Check, before any trial runs, that a search may run in ``folder``; return it as an absolute ``Path``.
 
     With ``resume`` it must hold a search to continue. Otherwise it must be missing or empty, or, with
-    ``force``, hold an earlier search (its :data:`SEARCH_SETTINGS_FILE`), which is then removed: ``force``
-    never removes anything else.
+    ``force``, hold an earlier search (its :data:`SEARCH_SETTINGS_FILE`), which :func:`tune_search` replaces
+    once the new search is done: ``force`` never removes anything else.
 
     Raises:
         ValueError: ``resume`` with ``force``, nothing to resume, a file in the way, a non-empty folder
@@ -470,7 +467,6 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
             raise ValueError(f"--out {out} is not empty; pass --resume to continue its search or --force to replace")
         if not (out / SEARCH_SETTINGS_FILE).is_file():
             raise ValueError(f"--out {out} holds no search ({SEARCH_SETTINGS_FILE}); refusing to replace it")
-        shutil.rmtree(out)
     return out
 
 
@@ -484,6 +480,7 @@ def tune_search(
     folder: str | os.PathLike[str],
     *,
     resume: bool = False,
+    force: bool = False,
     space: Mapping[str, Any] | None = None,
     points_to_evaluate: Sequence[Mapping[str, Any]] | None = None,
     address: str | None = None,
@@ -500,16 +497,20 @@ def tune_search(
 
     ``space`` defaults to :func:`default_space`; ``points_to_evaluate`` are tried first (Optuna enqueues
     them). With ``resume``, the settings saved in ``folder`` are used and ``settings`` is ignored; finished
-    trials are kept, unfinished ones rerun, failed ones stay failed.
+    trials are kept, unfinished ones rerun, failed ones stay failed. ``folder`` is checked by
+    :func:`prepare_search_folder`; ``force`` replaces an earlier search once the new one is done.
 
     Raises:
         AllTrialsFailedError: every trial failed (``tune_summary.json`` and ``trials.csv`` are still written).
+        SearchInterruptedError: a signal stopped the search; it stays in ``folder`` to resume.
+        KeyboardInterrupt: a signal stopped it before it could resume, or with ``force``: ``folder`` is as it was.
     """
     import optuna
     from ray.tune.search.optuna import OptunaSearch
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
-    folder = Path(folder).resolve()
+    folder = prepare_search_folder(folder, resume, force)
+    earlier = not resume and folder.is_dir() and any(folder.iterdir())
     if resume:
         settings = read_settings(folder)
     base = settings.base
@@ -526,7 +527,8 @@ def tune_search(
         {"cpu": cpus_per_trial},
     )
     bar = _Bar(settings.trials, "trials", OBJECTIVE)
-    with ray_session(address, num_cpus):
+    place = nullcontext(folder) if resume else files.folder_in_place(folder, keep=can_resume)
+    with place, ray_session(address, num_cpus):
         if resume:
             tuner = tune.Tuner.restore(str(folder / SEARCH_NAME), trainable, resume_unfinished=True)
             # Tuner.restore takes no run configuration: give the restored one a bar that starts where
@@ -534,8 +536,7 @@ def tune_search(
             # (_local_tuner is None only under Ray Client, a "ray://" address.)
             tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
         else:
-            folder.mkdir(parents=True, exist_ok=True)
-            _write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
+            files.write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
             searcher = OptunaSearch(
                 metric=OBJECTIVE,
                 mode="max",
@@ -549,10 +550,14 @@ def tune_search(
                 run_config=_run_config(folder, SEARCH_NAME, bar),
             )
         grid = _fit(tuner, bar)
-    finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
-    if len(finished) < settings.trials:  # Tune stops on Ctrl-C after saving its state
-        raise SearchInterruptedError(f"{len(finished)} of {settings.trials} trials finished; resume the search")
-    return _write_search_results(settings, grid, folder)
+        finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
+        if len(finished) < settings.trials:  # Tune stops on a signal after saving its state
+            kept = resume or not earlier and can_resume(folder)  # as folder_in_place decides
+            raise SearchInterruptedError(f"{len(finished)} trials finished") if kept else files.interruption()
+        summary = _write_search_results(settings, grid, folder)
+    if summary["best"] is None:
+        raise AllTrialsFailedError([TrialFailure(f["trial"], f["error"]) for f in summary["failed"]])
+    return summary
 
 
 def _trial_tag(result: tune.Result) -> tuple[int, str]:
@@ -567,6 +572,7 @@ def _trial_tag(result: tune.Result) -> tuple[int, str]:
 
 
 def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result], folder: Path) -> dict[str, Any]:
+    """Write the search's result files (moved into place together); return the summary."""
     trials, failures = [], []
     for result in grid:
         number, trial_id = _trial_tag(result)
@@ -589,19 +595,22 @@ def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result],
         "failed": [f.to_dict() for f in failures],
         "best": best,
     } | training.cpu_total(done)
-    _write_trials_csv(folder / TRIALS_FILE, trials)
     if best is not None:
-        params = {k: best[k] for k in dict(grid[0].config or {}) if k in best}
-        config = replace(apply_params(settings.base, params), preset="tuned")
-        training.save_preset(config, folder / PRESET_FILE, search=str(folder), trial=best["trial_id"],
-                             objective=best[OBJECTIVE], score=best["score"])  # fmt: skip
         summary["preset"] = str(folder / PRESET_FILE)
-        if _has_matplotlib():
-            plot_search(trials, folder / PLOT_FILE)
+        if importlib.util.find_spec("matplotlib") is not None:
             summary["plot"] = str(folder / PLOT_FILE)
-    _write_json(folder / TUNE_SUMMARY_FILE, summary)
-    if best is None:
-        raise AllTrialsFailedError(failures)
+    names = [TRIALS_FILE, TUNE_SUMMARY_FILE] + [Path(summary[key]).name for key in ("preset", "plot") if key in summary]
+    with files.atomic_files(*(folder / name for name in names)) as temporaries:
+        paths = dict(zip(names, temporaries))
+        _write_trials_csv(paths[TRIALS_FILE], trials)
+        if best is not None:
+            params = {k: best[k] for k in dict(grid[0].config or {}) if k in best}
+            config = replace(apply_params(settings.base, params), preset="tuned")
+            training.save_preset(config, paths[PRESET_FILE], search=str(folder), trial=best["trial_id"],
+                                 objective=best[OBJECTIVE], score=best["score"])  # fmt: skip
+        if PLOT_FILE in paths:
+            plot_search(trials, paths[PLOT_FILE])
+        files.write_json(paths[TUNE_SUMMARY_FILE], summary)
     return summary
 
 
@@ -609,18 +618,10 @@ def _write_trials_csv(path: Path, trials: Sequence[Mapping[str, Any]]) -> None:
     columns: list[str] = []
     for row in trials:
         columns += [key for key in row if key not in columns]
-    staging = path.with_name(f".{path.name}.partial")
-    with staging.open("w", newline="") as handle:
+    with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
         writer.writeheader()
         writer.writerows(trials)
-    os.replace(staging, path)
-
-
-def _has_matplotlib() -> bool:
-    import importlib.util
-
-    return importlib.util.find_spec("matplotlib") is not None
 
 
 def plot_search(trials: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> Path:
@@ -649,12 +650,4 @@ def plot_search(trials: Sequence[Mapping[str, Any]], path: str | os.PathLike[str
     axes.set_ylabel("expected-risk return (IQM over seeds)")
     axes.set_title(f"hyperparameter search: {len(done)} trials" + (f", {len(failed)} failed" if failed else ""))
     axes.legend(loc="lower right")
-    path = Path(path)
-    save_figure(figure, path)
-    return path
-
-
-def _write_json(path: Path, data: object) -> None:
-    staging = path.with_name(f".{path.name}.partial")
-    staging.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
-    os.replace(staging, path)
+    return files.atomic_write(path, lambda temporary: save_figure(figure, temporary))

@@ -12,10 +12,12 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
 from collections.abc import Sequence
 from types import ModuleType
 
+from heartpole import files
 from heartpole.cli.common import CommandError
 
 DESCRIPTION = """\
@@ -52,20 +54,40 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``heartpole`` command with ``argv`` (default: ``sys.argv[1:]``); return the exit code."""
+    """Run the ``heartpole`` command with ``argv`` (default: ``sys.argv[1:]``); return the exit code.
+
+    Ended by SIGINT (Ctrl-C), SIGTERM or SIGHUP, a command cleans up what it was writing (see
+    :mod:`heartpole.files`), says so on stderr and returns 128 + the signal's number: 130, 143 or 129.
+    """
+    command = ["heartpole"]
+    try:
+        with files.signal_policy():  # first thing: from here on, a signal unwinds through every cleanup
+            try:
+                return _run(argv, command)
+            except KeyboardInterrupt:  # files.Interrupted, or a KeyboardInterrupt a library raised
+                _say_interrupted(command)
+                return files.exit_code()
+    except KeyboardInterrupt:  # another signal while saying so, or while the handlers were put back
+        return files.exit_code()
+
+
+def _say_interrupted(command: list[str]) -> None:
+    name = signal.Signals(files.exit_code() - 128).name
+    print(f"{' '.join(command)}: interrupted by {name}", file=sys.stderr)
+
+
+def _run(argv: Sequence[str] | None, command: list[str]) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):
         parser.print_help()
         return 2
+    command.append(args.command)
     try:
         return int(args.handler(args) or 0)
     except CommandError as error:
         print(f"heartpole {args.command}: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"heartpole {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet
         return 0

@@ -1,12 +1,14 @@
-"""What every ``heartpole`` subcommand shares: errors, argument types, tables and safe file writing."""
+"""What every ``heartpole`` subcommand shares: errors, argument types, tables and output checks.
+
+Files are written by :mod:`heartpole.files` (whole or not at all).
+"""
 
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn, TypeAlias
 
@@ -100,8 +102,8 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     """Check, before any work, that the file ``path`` may be written; return it as a ``Path``.
 
     Every command that writes behaves alike: missing folders are created (when written, by
-    :func:`atomic_write`), an existing file is replaced only with ``--force``, and files and folders get the
-    modes the umask gives.
+    :func:`heartpole.files.atomic_files`), an existing file is replaced only with ``--force``, and files and
+    folders get the modes the umask gives.
 
     Raises:
         CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or no
@@ -136,39 +138,6 @@ def _nearest_existing(folder: Path) -> Path:
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     return folder
-
-
-def umask() -> int:
-    """The process's umask (read without changing it for longer than the call)."""
-    current = os.umask(0)
-    os.umask(current)
-    return current
-
-
-def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None]) -> Path:
-    """Call ``write(temporary_path)`` then move the result to ``path``; on failure nothing is left behind.
-
-    Missing folders on the way are created (with the umask's modes) and removed again if the write fails;
-    the file gets the umask's mode, as a file written by ``open`` would.
-    """
-    target = Path(path)
-    created = [p for p in [target.parent, *target.parent.parents] if str(p) and not p.exists()]
-    target.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=target.suffix)
-    os.close(handle)
-    try:
-        write(Path(temporary))
-        os.chmod(temporary, 0o666 & ~umask())  # mkstemp makes files private; give the usual permissions
-        os.replace(temporary, target)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        for folder in created:  # nearest first; only folders this call made
-            try:
-                folder.rmdir()
-            except OSError:
-                break
-        raise
-    return target
 
 
 def one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:

@@ -14,10 +14,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from heartpole import files
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
-    atomic_write,
     format_table,
     markdown_table,
     output_files,
@@ -148,8 +148,7 @@ def run_baselines(args: argparse.Namespace) -> int:
         print(json.dumps(data, allow_nan=False), flush=True)
     else:
         print(format_baselines(results), flush=True)
-    _library(lambda: atomic_write(markdown_path, lambda path: _write_text(path, baselines_markdown(results))))
-    _library(lambda: atomic_write(csv_path, lambda path: _write_text(path, baselines_csv(results))))
+    _library(lambda: _write_both(markdown_path, baselines_markdown(results), csv_path, baselines_csv(results)))
     if not args.json:
         print(f"\nwrote {markdown_path} and {csv_path}")
     return 0
@@ -192,9 +191,11 @@ def _library(call: Callable[[], T]) -> T:
         raise CommandError(" ".join(str(error).split())) from None
 
 
-def _write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` (a writer for :func:`atomic_write`)."""
-    path.write_text(text)
+def _write_both(first: Path, first_text: str, second: Path, second_text: str) -> None:
+    """Write two text files, moved into place together (both or neither)."""
+    with files.atomic_files(first, second) as (first_temporary, second_temporary):
+        first_temporary.write_text(first_text)
+        second_temporary.write_text(second_text)
 
 
 # ------------------------------------------------------------------------------------------------------

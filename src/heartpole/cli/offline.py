@@ -6,12 +6,10 @@ The work is done by :mod:`heartpole.offline`; these commands parse, call it and 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
-import signal
-from collections.abc import Callable, Iterator
-from types import FrameType, ModuleType
+from collections.abc import Callable
+from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
@@ -104,11 +102,6 @@ def _register_ope(subparsers: Subparsers) -> None:
 
 def run_dataset(args: argparse.Namespace) -> int:
     """``heartpole dataset``: record one dataset, or the standard collection."""
-    with _sigterm_as_interrupt():
-        return _record(args)
-
-
-def _record(args: argparse.Namespace) -> int:
     datasets = _offline("datasets")
     if args.standard == bool(args.policy):
         raise CommandError("give either --policy P or --standard")
@@ -192,24 +185,6 @@ def _ci(interval: tuple[float, float]) -> str:
     if not all(math.isfinite(v) for v in interval):
         return "-"
     return f"[{interval[0]:.4f}, {interval[1]:.4f}]"
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """Treat SIGTERM like Ctrl-C while recording, so the temporary dataset is removed either way."""
-
-    def interrupt(signum: int, frame: FrameType | None) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, interrupt)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _offline(module: str) -> ModuleType:

@@ -80,11 +80,11 @@ def run_optimum(args: argparse.Namespace) -> int:
             solution = optimum.optimum(args.env, kwargs)
         else:
             solution = optimum.solve(args.env, grid=args.grid, **kwargs)
-        if args.out:
+        checks = _check(args, kwargs) if args.check else {}
+        if args.out:  # last, so that an interrupted command leaves --out as it was
             solution.save(args.out)
     except (ValueError, TypeError, OSError) as error:  # TypeError: a --param the env does not take
         raise CommandError(" ".join(str(error).split())) from None
-    checks = _check(args, kwargs) if args.check else {}
     if args.json:
         data = {**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}
         print(json.dumps(data, allow_nan=False))

@@ -14,6 +14,7 @@ import math
 import sys
 from typing import TextIO
 
+from heartpole import files
 from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
 from heartpole.game import (
     Game,
@@ -81,10 +82,13 @@ def play(args: argparse.Namespace) -> int:
     try:
         with reader.keys():
             finished = play_turns(game, reader, args.steps, out)
-    except KeyboardInterrupt:
-        out.write("\nInterrupted.\n" + game.summary_line() + "\n")
-        out.flush()
-        return 130
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM or SIGHUP (heartpole.files.signal_policy)
+        try:
+            out.write("\nInterrupted.\n" + game.summary_line() + "\n")
+            out.flush()
+        except OSError:
+            pass  # SIGHUP: the terminal is gone
+        return files.exit_code()
     if not finished:
         out.write(f"\nYou stopped after {game.steps} of {args.steps} half-hour decisions.\n")
     _summary(game, args, seed, out)

@@ -15,11 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from heartpole import plots
+from heartpole import files, plots
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
-    atomic_write,
     output_file,
     output_files,
     positive_int,
@@ -152,17 +151,19 @@ def _policy(args: argparse.Namespace) -> Policy:
 
 
 def _write_figure(figure: Figure, path: Path) -> None:
-    atomic_write(path, lambda temporary: plots.save_figure(figure, temporary))
+    files.atomic_write(path, lambda temporary: plots.save_figure(figure, temporary))
     print(f"wrote {path}")
 
 
 # --------------------------------------------------------------------------------------------------------
 def plot_model(args: argparse.Namespace) -> int:
-    """``heartpole plot model --out DIR``: one PNG per model figure."""
+    """``heartpole plot model --out DIR``: one PNG per model figure, moved into place together."""
     _require_matplotlib()
     targets = output_files(args.out, [f"{stem}.png" for stem in plots.MODEL_FIGURES], force=args.force)
-    for make, target in zip(plots.MODEL_FIGURES.values(), targets):
-        _write_figure(make(Params()), target)
+    with files.atomic_files(*targets) as temporaries:
+        for make, temporary in zip(plots.MODEL_FIGURES.values(), temporaries):
+            plots.save_figure(make(Params()), temporary)
+    print("\n".join(f"wrote {target}" for target in targets))
     return 0
 
 
@@ -215,7 +216,7 @@ def record(args: argparse.Namespace) -> int:
             nonlocal count
             count = plots.write_video(_counted(frames, bar), temporary, fps=args.fps)
 
-        atomic_write(target, write)
+        files.atomic_write(target, write)
     print(f"wrote {target} ({count} frames, {count / args.fps:.1f} s at {args.fps} fps)")
     return 0
 

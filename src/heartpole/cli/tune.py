@@ -12,6 +12,7 @@ import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from heartpole import files
 from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
@@ -135,14 +136,17 @@ def run_tune(args: argparse.Namespace) -> int:
     if not args.json:
         print(_announce(scale.read_settings(out) if args.resume else settings, out, args.resume), flush=True)
     try:
-        summary = scale.tune_search(settings, out, resume=args.resume, address=args.address, cpus_per_trial=cpus)
+        summary = scale.tune_search(settings, out, resume=args.resume, force=args.force, address=args.address,
+                                    cpus_per_trial=cpus)  # fmt: skip
     except scale.AllTrialsFailedError as error:
         for failure in error.failures:
             print(failure.line(), file=sys.stderr)
         raise CommandError(f"every trial failed; see {out / scale.TRIALS_FILE}") from None
-    except scale.SearchInterruptedError:
+    except KeyboardInterrupt:  # Ctrl-C, SIGTERM or SIGHUP: --out holds the search to resume, or what it held
+        if args.force or not scale.can_resume(out):  # with --force, the earlier search is back as it was
+            raise
         print(f"heartpole tune: interrupted; continue with: heartpole tune --resume --out {out}", file=sys.stderr)
-        return 130
+        return files.exit_code()
     except ConnectionError as error:
         raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None
     if args.json:

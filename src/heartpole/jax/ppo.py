@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heartpole import policies
+from heartpole import files, policies
 from heartpole.jax.env import EnvParams, HeartPoleJax
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
 
@@ -492,17 +492,17 @@ def _seed_result(
         **{key: round(value, 2) for key, value in timings.items()},
         "versions": {**training._versions(), "jax": jax.__version__},
     }  # fmt: skip
-    training._write_json(folder / policies.SIDECAR_NAME, sidecar)
+    files.write_json(folder / policies.SIDECAR_NAME, sidecar)
     policy = load_policy(str(folder / policies.MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
     policy.name = str(final_folder / policies.MODEL_NAME)  # type: ignore[attr-defined]
     result = evaluate(policy, config.env_id, episodes=eval_episodes, seed=eval_seed,
                       env_kwargs=dict(config.env_kwargs), progress=progress)  # fmt: skip
     evaluation = result.to_dict()
-    training._write_json(folder / training.EVALUATION_FILE, evaluation)
+    files.write_json(folder / training.EVALUATION_FILE, evaluation)
     own = time.perf_counter() - started
     wall = timings["compile_seconds"] + timings["train_seconds"] + own
     sidecar.update(eval_seconds=round(own, 2), wall_seconds=round(wall, 2))
-    training._write_json(folder / policies.SIDECAR_NAME, sidecar)
+    files.write_json(folder / policies.SIDECAR_NAME, sidecar)
     return training.run_summary(config, evaluation, timings["train_seconds"], wall) | {
         "compile_seconds": round(timings["compile_seconds"], 2)
     }
@@ -608,5 +608,5 @@ def train_seeds(
         return runs[0]
     summary = training.seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
     summary |= {"backend": "jax", **{key: round(value, 2) for key, value in timings.items()}}
-    training._write_json(folder / training.SUMMARY_FILE, summary)
+    files.write_json(folder / training.SUMMARY_FILE, summary)
     return summary

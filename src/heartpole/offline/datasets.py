@@ -12,8 +12,9 @@ behaviour policy. Infos follow Minari's convention of one entry per observation 
   for the step that led to observation ``t`` (zero for the first observation, which came from reset).
 
 Datasets are written under a temporary folder in Minari's datasets folder (``MINARI_DATASETS_PATH``, or
-``~/.minari/datasets``) and moved into place when complete, so an error or Ctrl-C leaves nothing half
-written. Dataset ids read ``heartpole/<env>/<behaviour>-v0``, e.g. ``heartpole/v0/reference-eps20-v0``.
+``~/.minari/datasets``) and moved into place when complete, so an error, Ctrl-C or SIGTERM leaves nothing
+half written (:mod:`heartpole.files`). Dataset ids read ``heartpole/<env>/<behaviour>-v0``, e.g.
+``heartpole/v0/reference-eps20-v0``.
 """
 
 from __future__ import annotations
@@ -24,12 +25,11 @@ import os
 import re
 import shutil
 import time
-import uuid
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from minari import MinariDataset
     from minari.data_collector import EpisodeBuffer
 
+from heartpole import files
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
@@ -138,6 +139,28 @@ def record_dataset(
     """
     import minari
 
+    target_id, create = _plan(policy, epsilon, episodes, env_id, seed, dataset_id, force, description, num_envs,
+                              progress)  # fmt: skip
+    with quiet_version_warnings():
+        _write_atomically({target_id: create}, force)
+        return minari.load_dataset(target_id)
+
+
+def _plan(
+    policy: PolicyLike | Sequence[PolicyLike],
+    epsilon: float,
+    episodes: int,
+    env_id: str,
+    seed: int,
+    dataset_id: str | None,
+    force: bool,
+    description: str | None,
+    num_envs: int | None,
+    progress: Callable[[int], None] | None,
+) -> tuple[str, Callable[[], None]]:
+    """:func:`record_dataset`'s checks; its dataset id and the function that records it into Minari's folder."""
+    import minari
+
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     epsilon = check_epsilon(epsilon)
     dynamics = env_dynamics(env_id)
@@ -195,9 +218,7 @@ def record_dataset(
         assert dataset is not None
         dataset.storage.update_metadata({**extra, "recording_seconds": round(time.perf_counter() - started, 3)})
 
-    with quiet_version_warnings():
-        _write_atomically(target_id, force, create)
-        return minari.load_dataset(target_id)
+    return target_id, create
 
 
 def record_standard(
@@ -212,25 +233,21 @@ def record_standard(
     """Record the standard collection (:data:`STANDARD_DATASETS`); returns the dataset ids.
 
     Every id is checked before anything is recorded, so an existing dataset without ``force`` stops the
-    run before it starts.
+    run before it starts. The datasets are moved into place together once all are recorded: an error or
+    interruption leaves the earlier collection as it was.
     """
     ids = [default_dataset_id(spec.name, env_id) for spec in specs]
     if not force:
         existing = [i for i in ids if _exists(i)]
         if existing:
             raise FileExistsError(f"datasets already exist: {', '.join(existing)}; pass force=True (--force)")
-    for spec, target in zip(specs, ids):
-        record_dataset(
-            spec.policy,
-            spec.epsilon,
-            episodes,
-            env_id,
-            seed,
-            dataset_id=target,
-            force=force,
-            description=f"{episodes} episodes of {env_id}: {spec.description}. Recorded by heartpole.",
-            progress=progress,
-        )
+    plans = dict(
+        _plan(spec.policy, spec.epsilon, episodes, env_id, seed, target, force,
+              f"{episodes} episodes of {env_id}: {spec.description}. Recorded by heartpole.", None, progress)
+        for spec, target in zip(specs, ids)
+    )  # fmt: skip
+    with quiet_version_warnings():
+        _write_atomically(plans, force)
     return ids
 
 
@@ -319,28 +336,25 @@ def _exists(target_id: str) -> bool:
     return (_root() / target_id).exists()
 
 
-def _write_atomically(target_id: str, force: bool, create: Callable[[], Any]) -> None:
-    """Run ``create`` with Minari pointed at a temporary folder, then move the dataset into place."""
+def _write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:
+    """Run each dataset's ``create`` with Minari pointed at a hidden scratch folder in its datasets folder,
+    then move the datasets into place together, signals deferred (:mod:`heartpole.files`): an error or an
+    interruption leaves Minari's folder as it was."""
     root = _root()
-    root.mkdir(parents=True, exist_ok=True)
-    temporary = root / f".heartpole-tmp-{uuid.uuid4().hex}"
-    final = root / target_id
-    try:
-        with _minari_root(temporary):
+    with files.scratch_folder(root, "heartpole-datasets") as scratch:
+        with _minari_root(scratch):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)  # Minari's notices about optional metadata
-                create()
-        if final.exists() and not force:
-            raise FileExistsError(f"dataset {target_id!r} already exists in {root}; pass force=True (--force)")
-        final.parent.mkdir(parents=True, exist_ok=True)
-        _copy_namespace_metadata(temporary, root, target_id)
-        old = root / f".heartpole-old-{uuid.uuid4().hex}"
-        if final.exists():
-            os.replace(final, old)
-        os.replace(temporary / target_id, final)
-        shutil.rmtree(old, ignore_errors=True)
-    finally:
-        shutil.rmtree(temporary, ignore_errors=True)
+                for create in creates.values():
+                    create()
+        with files.signals_deferred():
+            existing = [target_id for target_id in creates if (root / target_id).exists()]
+            if existing and not force:
+                raise FileExistsError(f"dataset {existing[0]!r} already exists in {root}; pass force=True (--force)")
+            for target_id in creates:
+                (root / target_id).parent.mkdir(parents=True, exist_ok=True)
+                _copy_namespace_metadata(scratch, root, target_id)
+                files.replace_folder(scratch / target_id, root / target_id)
 
 
 def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> None:

@@ -6,14 +6,14 @@ import functools
 import hashlib
 import json
 import os
-import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from heartpole import files
 from heartpole.model import Params, check_integer, heart_attack_risk
 
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
@@ -112,12 +112,12 @@ class OptimumSolution:
         }
 
     def save(self, directory: str | Path) -> Path:
-        """Write ``optimum.json`` and ``optimum.npz`` into ``directory`` (created), each atomically."""
+        """Write ``optimum.json`` and ``optimum.npz`` into ``directory`` (created), both or neither, atomically."""
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        _atomic_write(directory / "optimum.npz", lambda handle: np.savez_compressed(handle, thresholds=self.thresholds))
-        text = json.dumps(self.summary(), indent=2, allow_nan=False) + "\n"
-        _atomic_write(directory / "optimum.json", lambda handle: handle.write(text.encode()))
+        with files.atomic_files(directory / "optimum.npz", directory / "optimum.json") as (npz, summary):
+            with npz.open("wb") as handle:
+                np.savez_compressed(handle, thresholds=self.thresholds)
+            summary.write_text(json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
         return directory
 
     @classmethod
@@ -272,15 +272,3 @@ def _changed_params(params: Params) -> dict[str, Any]:
     """The env keyword arguments that give ``params``: the fields that differ from the defaults."""
     defaults = params_dict(Params())
     return {key: value for key, value in params_dict(params).items() if defaults[key] != value}
-
-
-def _atomic_write(path: Path, write: Callable[[IO[bytes]], object]) -> None:
-    """Write ``path`` through a temporary file in the same folder, moved into place when complete."""
-    handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False)
-    try:
-        with handle:
-            write(handle)
-        os.replace(handle.name, path)
-    except BaseException:
-        Path(handle.name).unlink(missing_ok=True)
-        raise

@@ -68,7 +68,6 @@ from heartpole.training.outputs import (
     EVALUATION_FILE,
     SUMMARY_FILE,
     _versions,
-    _write_json,
     check_output_folder,
     staged_output,
     write_curve,
@@ -165,6 +164,5 @@ __all__ = [
     "check_run",
     "train",
     "TRAIN_EXTRA",
-    "_write_json",
     "_versions",
 ]

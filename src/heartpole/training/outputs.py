@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import csv
-import json
 import os
-import shutil
-import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -15,6 +12,7 @@ import gymnasium as gym
 import numpy as np
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole import files
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     CURVE_COLUMNS,
     SIDECAR_NAME,
@@ -56,38 +54,15 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
 def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[Path]:
     """Write into a temporary folder beside ``out``; move it to ``out`` only if the block succeeds.
 
-    On any error or interruption the temporary folder is removed and ``out`` is left as it was, so a
-    failed run never leaves half its files. With ``force``, a previous run in ``out`` is replaced.
+    On any error or interruption (Ctrl-C, and SIGTERM or SIGHUP under the ``heartpole`` command) the
+    temporary folder is removed and ``out`` is left as it was, so a failed run never leaves half its files.
+    With ``force``, a previous run in ``out`` is replaced, only once the new one is complete (see
+    :func:`heartpole.files.staged_folder`).
     """
     out = check_output_folder(out, force)
-    created = [p for p in [out.parent, *out.parent.parents] if not p.exists()]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
-    try:
-        os.chmod(staging, 0o777 & ~_umask())  # mkdtemp makes folders private; give the usual permissions
+    with files.staged_folder(out) as staging:
         yield staging
         check_output_folder(out, force)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-            os.replace(out, old / out.name)
-            os.replace(staging, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(staging, out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        for folder in created:  # nearest first; only folders this call made and left empty
-            try:
-                folder.rmdir()
-            except OSError:
-                break
-        raise
-
-
-def _umask() -> int:
-    current = os.umask(0)
-    os.umask(current)
-    return current
 
 
 def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
@@ -97,10 +72,6 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
         writer.writeheader()
         for row in rows:
             writer.writerow({key: row[key] for key in CURVE_COLUMNS})
-
-
-def _write_json(path: Path, data: object) -> None:
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
 def _versions() -> dict[str, str]:

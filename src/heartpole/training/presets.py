@@ -11,11 +11,11 @@ from pathlib import Path
 from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole import files
 from heartpole.model import check_integer
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
-from heartpole.training.outputs import _write_json
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
 SOLVED_HEART_ATTACKS = 1.30
@@ -279,14 +279,10 @@ def save_preset(config: TrainConfig, path: str | os.PathLike[str], **notes: Any)
     ``notes`` (e.g. where the configuration came from) are stored under ``"notes"`` and ignored on loading.
     The file is written to a temporary name and moved into place.
     """
-    path = Path(path)
     data = {"format": PRESET_FORMAT, "config": {k: v for k, v in config.to_dict().items() if k != "seed"}}
     if notes:
         data["notes"] = notes
-    staging = path.with_name(f".{path.name}.partial")
-    _write_json(staging, data)
-    os.replace(staging, path)
-    return path
+    return files.write_json(path, data)
 
 
 def load_preset(path: str | os.PathLike[str]) -> TrainConfig:

@@ -15,6 +15,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole import files
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     CURVE_NAME,
     MODEL_NAME,
@@ -24,7 +25,7 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
 from heartpole.stats import bootstrap_interval, interquartile_mean
 from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
-from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, _write_json, write_curve
+from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, write_curve
 from heartpole.training.presets import TrainConfig, env_solved_bar, meets_bar
 
 RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
@@ -149,7 +150,7 @@ def train_run(
         "train_seconds": round(trained.seconds, 2),
         "versions": _versions(),
     }
-    _write_json(folder / SIDECAR_NAME, sidecar)
+    files.write_json(folder / SIDECAR_NAME, sidecar)
     eval_started = time.perf_counter()
     policy = load_policy(str(folder / MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
     policy.name = str(Path(final_folder if final_folder is not None else folder) / MODEL_NAME)  # type: ignore[attr-defined]
@@ -162,14 +163,14 @@ def train_run(
         progress=progress,
     )
     evaluation = result.to_dict()
-    _write_json(folder / EVALUATION_FILE, evaluation)
+    files.write_json(folder / EVALUATION_FILE, evaluation)
     eval_seconds = time.perf_counter() - eval_started
     sidecar.update(
         eval_seconds=round(eval_seconds, 2),
         wall_seconds=round(time.perf_counter() - started, 2),
         cpu_seconds=round(time.process_time() - cpu_started, 2),
     )
-    _write_json(folder / SIDECAR_NAME, sidecar)
+    files.write_json(folder / SIDECAR_NAME, sidecar)
     return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"], sidecar["cpu_seconds"])
 
 
@@ -256,7 +257,7 @@ def train_seeds(
         if on_run is not None:
             on_run(run)
     summary = seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
-    _write_json(folder / SUMMARY_FILE, summary)
+    files.write_json(folder / SUMMARY_FILE, summary)
     return summary
 
 
