@@ -209,10 +209,10 @@ def test_baselines_prints_its_results_before_writing_the_files(capsys, tmp_path:
     """A failure writing the files comes after the results are on the screen: nothing computed is lost."""
     import heartpole.cli.evaluate as command
 
-    def full_disk(path: object, write: object) -> None:
+    def full_disk(*args: object) -> None:
         raise OSError("No space left on device")
 
-    monkeypatch.setattr(command, "atomic_write", full_disk)
+    monkeypatch.setattr(command, "_write_both", full_disk)
     code, stdout, stderr = _run(capsys, "baselines", "--episodes", "2", "--out", str(tmp_path))
     assert code == 2 and "No space left on device" in stderr
     assert "published Table 1" in stdout and "expert" in stdout
