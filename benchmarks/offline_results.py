@@ -24,13 +24,13 @@ import time
 from pathlib import Path
 
 import heartpole
-from heartpole.evaluation import plus_minus
 from heartpole.offline.behaviour import EpsilonGreedy
 from heartpole.offline.datasets import STANDARD_DATASETS, behaviour_policy, load_trajectories, record_standard
 from heartpole.offline.learners import behaviour_cloning, conservative_q_learning
 from heartpole.offline.ope import ESTIMATORS, estimate_all
 from heartpole.offline.truth import true_value
 from heartpole.policies import load_policy
+from heartpole.reporting import plus_minus
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "offline.md"
 START, END = "<!-- offline-results:start -->", "<!-- offline-results:end -->"

@@ -38,10 +38,10 @@ def nothing(params):
     tune.report({{"x": 1.0}})
 with scale.ray_session():
     ready = time.perf_counter()
-    bar = scale._Bar({trials}, "trials", "x")
+    bar = scale.TrialsBar({trials}, "trials", "x")
     tuner = tune.Tuner(nothing, param_space={{"i": tune.grid_search(list(range({trials})))}},
-                       run_config=scale._run_config(__import__("pathlib").Path("{storage}"), "empty", bar))
-    scale._fit(tuner, bar)
+                       run_config=scale.run_config(__import__("pathlib").Path("{storage}"), "empty", bar))
+    scale.fit(tuner, bar)
     fitted = time.perf_counter()
 stopped = time.perf_counter()
 print(json.dumps({{"import_s": imported - started, "init_s": ready - imported, "empty_trials_s": fitted - ready,

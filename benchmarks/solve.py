@@ -33,7 +33,7 @@ import torch
 
 from heartpole import training
 from heartpole.cli.train import parse_seeds
-from heartpole.policies import quiet_version_warnings
+from heartpole.registry import quiet_version_warnings
 from heartpole.training import ENV_REWARD, TrainConfig, TrainingReward, preset_config
 
 WALL_LIMIT_S = 600.0

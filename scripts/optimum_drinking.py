@@ -62,7 +62,7 @@ class Counted:
 def policy(args: argparse.Namespace, grid: dict[str, float], label: str) -> None:
     import heartpole
     from heartpole.optimum import solve_drinking
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     dynamics = env_dynamics("HeartPole-v0", KWARGS)
     rate = args.rate
@@ -86,7 +86,7 @@ def policy(args: argparse.Namespace, grid: dict[str, float], label: str) -> None
 
 def bound(args: argparse.Namespace, grid: dict[str, float], label: str) -> None:
     from heartpole.optimum import solve_drinking
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     params = env_dynamics("HeartPole-v0", KWARGS).params
     started = time.perf_counter()
@@ -102,7 +102,7 @@ def bound(args: argparse.Namespace, grid: dict[str, float], label: str) -> None:
 def check(args: argparse.Namespace, grid: dict[str, float], label: str) -> None:
     import heartpole
     from heartpole.optimum import drinking_rule_value
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     dynamics = env_dynamics("HeartPole-v0", KWARGS)
     work, spent = drinking_rule_value(dynamics.params, check_rule, args.decisions, **grid)

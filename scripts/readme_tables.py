@@ -38,7 +38,8 @@ SEED = 0
 def baselines_table(env_id: str) -> str:
     """The ranked table of every built-in policy on ``env_id``, as ``heartpole baselines`` prints it."""
     from heartpole.cli.common import markdown_table
-    from heartpole.evaluation import baselines, table_rows
+    from heartpole.evaluation import baselines
+    from heartpole.reporting import table_rows
 
     results = baselines(env_id=env_id, episodes=EPISODES, seed=SEED)
     command = f"heartpole baselines --env {env_id} --episodes {EPISODES} --seed {SEED}"
@@ -48,7 +49,8 @@ def baselines_table(env_id: str) -> str:
 def compare_table() -> str:
     """expert - reference, paired, on HeartPole-v0."""
     from heartpole.cli.common import markdown_table
-    from heartpole.evaluation import Comparison, evaluate, plus_minus
+    from heartpole.evaluation import Comparison, evaluate
+    from heartpole.reporting import plus_minus
 
     a = evaluate("expert", "HeartPole-v0", EPISODES, SEED)
     b = evaluate("reference", "HeartPole-v0", EPISODES, SEED)
@@ -69,8 +71,9 @@ def compare_table() -> str:
 def datasets_table() -> str:
     """The standard offline datasets (``heartpole dataset --standard``) with their behaviour's true return."""
     from heartpole.cli.common import markdown_table
-    from heartpole.evaluation import evaluate, plus_minus
+    from heartpole.evaluation import evaluate
     from heartpole.offline.datasets import STANDARD_DATASETS, behaviour_policy, default_dataset_id
+    from heartpole.reporting import plus_minus
 
     rows = []
     for spec in STANDARD_DATASETS:

@@ -7,6 +7,7 @@ bash scripts/setup.sh
 .venv/bin/ruff check src tests benchmarks scripts examples
 .venv/bin/ruff format --check src tests benchmarks scripts examples
 .venv/bin/mypy
+.venv/bin/lint-imports --no-cache  # the layers of pyproject.toml: every import points down, no cycles
 if [ "$#" -eq 0 ]; then
   set -- -m "not slow"
 fi

@@ -18,7 +18,7 @@ import jax.numpy as jnp  # noqa: E402
 
 from heartpole import plots, training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
-from heartpole.jax import ppo  # noqa: E402
+from heartpole.jax import export, ppo  # noqa: E402
 from heartpole.policies import load_policy  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*:DeprecationWarning")
@@ -118,7 +118,7 @@ def test_the_jax_preset_and_an_annealed_learning_rate_as_sb3_schedules_it() -> N
 def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> None:
     """Two seeds of a few thousand steps in one call: every file of the SB3 path, loadable, evaluable."""
     config = training.preset_config("default", timesteps=4096, n_envs=8, env_kwargs={"max_steps": 64})
-    summary = ppo.train_seeds(config, [0, 1], tmp_path, eval_episodes=20)
+    summary = export.train_seeds(config, [0, 1], tmp_path, eval_episodes=20)
     assert summary["seeds"] == [0, 1] and summary["compile_seconds"] > 0 and summary["train_seconds"] > 0
     assert set(summary["aggregate"]) >= {"heart_attacks_per_episode", "score", "mean_return"}
     assert json.loads((tmp_path / "summary.json").read_text())["backend"] == "jax"
@@ -141,7 +141,7 @@ def test_exported_model_acts_as_the_jax_network(tmp_path) -> None:
     env = ppo.HeartPoleJax.from_id("HeartPole-v0", max_steps=32)
     settings = ppo.PPOSettings.from_config(config)
     runner, _ = jax.jit(ppo.make_train(env, env.default_params, settings))(jax.random.key(3))
-    ppo.export_sb3(config, runner, tmp_path)
+    export.export_sb3(config, runner, tmp_path)
     policy = load_policy(str(tmp_path / "model.zip"), "HeartPole-v0")
     obs = np.random.default_rng(0).uniform(0, 5, size=(200, 6)).astype(np.float32)
     seen = policy.normalize(obs)

@@ -334,7 +334,7 @@ def test_cli_solves_saves_and_explains_refusals(tmp_path, capsys, v0: OptimumSol
 def test_without_heart_attack_risk_a_drinking_policy_far_outscores_the_no_drink_optimum(v0: OptimumSolution) -> None:
     """A coarse, short grid DP (a lower bound, not the optimum) already scores well above 0.327 by drinking."""
     from heartpole.optimum import solve_drinking
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     kwargs = {"heart_attack_proclivity": 0.0}
     dynamics = env_dynamics("HeartPole-v0", kwargs)
@@ -374,7 +374,7 @@ def test_the_drinking_grid_follows_a_half_hour_without_interpolating() -> None:
 def test_the_drinking_grid_agrees_with_the_env_on_a_fixed_rule() -> None:
     """A drinking rule's expected work on the grid matches the evaluator's episodes (the env's own step)."""
     from heartpole.optimum import drinking_rule_value
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     def rule(alertness: np.ndarray, intoxication: np.ndarray, t: np.ndarray) -> np.ndarray:
         return np.where(t >= 45, 3, np.where(alertness < 1.5, 1, np.where(intoxication < 0.125, 2, 0)))

@@ -27,7 +27,7 @@ from heartpole.policies import (
     load_policy,
     make_policy,
 )
-from heartpole.training.models import ModelPolicy, detect_algorithm
+from heartpole.policies.saved import ModelPolicy, detect_algorithm
 
 OBS = np.array(
     [
@@ -276,7 +276,7 @@ def test_vecnormalize_not_recorded_for_the_model_is_ignored_with_a_warning(model
 
 
 def test_recorded_vecnormalize_that_changed_or_vanished_is_refused(models, tmp_path) -> None:
-    from heartpole.training.models import file_sha256
+    from heartpole.policies.saved import file_sha256
 
     path = _copy_model(models, tmp_path / "run", None)
     record = {"algo": "ppo", "model": "m.zip", "vecnormalize": "vecnormalize.pkl", "vecnormalize_sha256": "0" * 64}

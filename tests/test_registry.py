@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 import heartpole
-from heartpole.policies import env_dynamics
-from heartpole.registry import BUILTIN_REWARD_THRESHOLDS, solved_bar
+from heartpole.registry import BUILTIN_REWARD_THRESHOLDS, env_dynamics, solved_bar
 
 
 @pytest.fixture

@@ -119,7 +119,7 @@ def test_progress_bar_counts_trials_and_the_best_figure(capsys: pytest.CaptureFi
     from heartpole import scale
 
     seen: list[dict] = []
-    bar = scale._Bar(3, "seeds", "expected_return", seen.append)
+    bar = scale.TrialsBar(3, "seeds", "expected_return", seen.append)
     old = SimpleNamespace(status="TERMINATED", last_result={"expected_return": -130.0})  # restored, finished
     new = SimpleNamespace(status="RUNNING", last_result={"expected_return": -124.0})
     broken = SimpleNamespace(status="RUNNING", last_result={})

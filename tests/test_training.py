@@ -375,7 +375,7 @@ def test_train_run_writes_files_that_load_and_act(tmp_path: Path, algo: str) -> 
     for name in RUN_FILES:
         assert (folder / name).is_file(), name
     sidecar = json.loads((folder / "heartpole.json").read_text())
-    from heartpole.training.models import file_sha256
+    from heartpole.policies.saved import file_sha256
 
     assert sidecar["model"] == "model.zip" and sidecar["model_sha256"] == file_sha256(folder / "model.zip")
     assert sidecar["vecnormalize"] == "vecnormalize.pkl"

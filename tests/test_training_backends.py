@@ -1,4 +1,4 @@
-"""heartpole.training.backends: what ``heartpole train`` runs, called directly."""
+"""heartpole.launch: what ``heartpole train`` runs, called directly."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from heartpole import training  # noqa: E402
+from heartpole import launch, training  # noqa: E402
 from heartpole.training import preset_config  # noqa: E402
 
 
@@ -20,26 +20,26 @@ def tiny(**overrides: object) -> training.TrainConfig:
 
 
 def test_default_out_names_the_preset_the_algorithm_and_the_backend() -> None:
-    assert training.default_out(preset_config()) == "runs/ppo"
-    assert training.default_out(preset_config("tutorial", "a2c")) == "runs/tutorial-a2c"
-    assert training.default_out(preset_config(), "jax") == "runs/ppo-jax"
+    assert launch.default_out(preset_config()) == "runs/ppo"
+    assert launch.default_out(preset_config("tutorial", "a2c")) == "runs/tutorial-a2c"
+    assert launch.default_out(preset_config(), "jax") == "runs/ppo-jax"
     from_file = training.TrainConfig(preset="runs/tune-ppo/best_preset.json")
-    assert training.default_out(from_file) == "runs/best_preset-ppo"
+    assert launch.default_out(from_file) == "runs/best_preset-ppo"
 
 
 def test_check_run_refuses_before_any_training(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="Nope-v0"):
-        training.check_run(tiny(env_id="Nope-v0"), tmp_path / "out")
+        launch.check_run(tiny(env_id="Nope-v0"), tmp_path / "out")
     (tmp_path / "file").write_text("x")
     with pytest.raises(FileExistsError, match="is a file"):
-        training.check_run(tiny(), tmp_path / "file")
-    assert training.check_run(tiny(), str(tmp_path / "new")) == tmp_path / "new"
+        launch.check_run(tiny(), tmp_path / "file")
+    assert launch.check_run(tiny(), str(tmp_path / "new")) == tmp_path / "new"
     assert not (tmp_path / "new").exists()  # checking writes nothing
 
 
 def test_train_one_seed_writes_the_run_into_out(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    result = training.train(tiny(seed=3), out, eval_episodes=4, progress=False)
+    result = launch.train(tiny(seed=3), out, eval_episodes=4, progress=False)
     assert result["seed"] == 3
     assert json.loads((out / training.EVALUATION_FILE).read_text())["episodes"] == 4
     assert {"model.zip", "heartpole.json", "learning_curve.csv"} <= set(os.listdir(out))
@@ -48,7 +48,7 @@ def test_train_one_seed_writes_the_run_into_out(tmp_path: Path) -> None:
 
 def test_train_seeds_calls_back_per_seed_and_aggregates(tmp_path: Path) -> None:
     seen: list[int] = []
-    result = training.train(
+    result = launch.train(
         tiny(),
         tmp_path / "seeds",
         seeds=[1, 0],
@@ -66,13 +66,13 @@ def test_a_failed_run_leaves_out_as_it_was(tmp_path: Path) -> None:
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        training.train(tiny(), tmp_path / "run", seeds=[0, 1], eval_episodes=4, progress=False, on_run=interrupt)
+        launch.train(tiny(), tmp_path / "run", seeds=[0, 1], eval_episodes=4, progress=False, on_run=interrupt)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_ray_needs_seeds_and_the_sb3_backend(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="ray runs the seeds"):
-        training.train(tiny(), tmp_path / "x", ray=True)
+        launch.train(tiny(), tmp_path / "x", ray=True)
     with pytest.raises(ValueError, match="ray runs the seeds"):
-        training.train(tiny(), tmp_path / "x", seeds=[0], backend="jax", ray=True)
+        launch.train(tiny(), tmp_path / "x", seeds=[0], backend="jax", ray=True)
     assert list(tmp_path.iterdir()) == []

@@ -36,21 +36,9 @@ import numpy as np
 
 from heartpole.dynamics import Dynamics
 from heartpole.model import check_integer
-from heartpole.policies import (
-    Policy,
-    act_batch,
-    available_builtins,
-    load_policy,
-    policy_name,
-    quiet_version_warnings,
-)
-from heartpole.reporting import PUBLISHED_EPISODES as PUBLISHED_EPISODES
-from heartpole.reporting import PUBLISHED_TABLE1 as PUBLISHED_TABLE1
-from heartpole.reporting import json_interval, json_number
-from heartpole.reporting import plus_minus as plus_minus
-from heartpole.reporting import published_rows as published_rows
-from heartpole.reporting import table_rows as table_rows
-from heartpole.stats import confidence_interval
+from heartpole.policies import Policy, act_batch, available_builtins, load_policy, policy_name
+from heartpole.registry import quiet_version_warnings
+from heartpole.stats import confidence_interval, json_interval, json_number
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
@@ -524,8 +512,8 @@ def _progress_callback(
     if not progress:
         yield _ignore
         return
-    from heartpole.policies import env_dynamics
     from heartpole.progress import Progress as Bar
+    from heartpole.registry import env_dynamics
 
     bar = Bar(episodes * env_dynamics(env_id, env_kwargs).params.max_steps, description)
     try:

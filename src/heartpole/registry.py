@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+import warnings
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -33,6 +35,7 @@ from heartpole.actions import V0_ACTIONS, Action, as_action
 from heartpole.dynamics import BOOKKEEPING, Dynamics
 from heartpole.env import build_dynamics
 from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords, heart_attack_risk
+from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
 
 V0_ID = "HeartPole-v0"
 V1_ID = "HeartPole-v1"
@@ -116,17 +119,6 @@ class SolvedBar:
 
 SOLVED_ATTACKS_ABOVE_FLOOR = 1.05
 SOLVED_SHARE_OF_BEST_SCORE = 0.92
-
-
-def best_known_rate(dynamics: Dynamics) -> float | None:
-    """The best long-run score known for ``dynamics``: the ``expert`` policy's rate (0.327 for v0, 0.69 for
-    v1), or ``None`` for a variant without the ``do_nothing`` and ``sleep`` actions the expert needs."""
-    from heartpole.policies import ExpertPolicy
-
-    try:
-        return ExpertPolicy(dynamics).rate
-    except ValueError:
-        return None
 
 
 def solved_bar(dynamics: Dynamics) -> SolvedBar:
@@ -344,3 +336,41 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
         )
     check_keywords("register_variant", params, ["id", "actions", "variables", "replace", *PARAMETERS])
     return dict(params)
+
+
+def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dynamics:
+    """The [`Dynamics`][heartpole.dynamics.Dynamics] of the HeartPole env ``env_id`` built with ``env_kwargs``.
+
+    Raises:
+        ValueError: for an unknown id, a bad value or an env that is not a HeartPole.
+        TypeError: for a keyword argument the env does not take.
+    """
+    try:
+        with quiet_version_warnings():
+            env = gym.make(env_id, **dict(env_kwargs or {}))
+    except gym.error.Error as error:
+        raise ValueError(f"unknown env {env_id!r} ({one_line(error)}); HeartPole envs: {_heartpole_ids()}") from None
+    except TypeError as error:  # an unexpected keyword stays Python's TypeError, which callers branch on
+        raise TypeError(f"env {env_id!r}: {one_line(error)}") from None
+    dynamics = getattr(env.unwrapped, "dynamics", None)
+    env.close()
+    if not isinstance(dynamics, Dynamics):
+        raise ValueError(f"env {env_id!r} is not a HeartPole env; HeartPole envs: {_heartpole_ids()}")
+    return dynamics
+
+
+@contextmanager
+def quiet_version_warnings() -> Iterator[None]:
+    """Silence Gymnasium's "environment HeartPole-v0 is out of date" warning: evaluating v0 is deliberate."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
+        yield
+
+
+def one_line(error: BaseException) -> str:
+    """``error``'s message on one line, to quote inside another message."""
+    return " ".join(str(error).split())
+
+
+def _heartpole_ids() -> str:
+    return ", ".join(sorted(i for i in gym.registry if i.startswith("HeartPole")))

@@ -1,20 +1,19 @@
-"""How HeartPole's results read: as text (a value with its interval, the ranked table, the published Table 1,
-and words for what is missing) and as JSON (no NaN or infinity: ``null``).
+"""How HeartPole's results read as text: a value with its interval, the ranked table, the published Table 1,
+and words for what is missing. (Their JSON form, ``null`` for what is missing, is
+[`json_number`][heartpole.stats.json_number]'s.)
 
 Fewer than two episodes give no interval, and a variant the optimum does not cover gives no regret; no
-output shows ``nan`` or ``inf`` for them. Text says so in words (:func:`missing_notes`), JSON has ``null``.
+output shows ``nan`` or ``inf`` for them. Text says so in words
+([`missing_notes`][heartpole.reporting.missing_notes]), JSON has ``null``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
+from heartpole.evaluation import EvaluationResult, rank
 from heartpole.stats import t_quantile_975
-
-if TYPE_CHECKING:
-    from heartpole.evaluation import EvaluationResult
 
 PUBLISHED_TABLE1: tuple[tuple[str, str, float], ...] = (
     ("CEM", "linear (0 hidden)", -524.12),
@@ -35,16 +34,6 @@ NO_INTERVAL = "no 95% intervals: fewer than 2 episodes (an interval needs at lea
 def has_interval(interval: Sequence[float]) -> bool:
     """Whether ``interval`` is an interval (finite ends), not the ``nan`` of fewer than two episodes."""
     return all(math.isfinite(end) for end in interval)
-
-
-def json_number(value: float) -> float | None:
-    """``value`` for JSON: ``None`` (``null``) for NaN and infinities, which JSON does not have."""
-    return float(value) if math.isfinite(value) else None
-
-
-def json_interval(interval: Sequence[float]) -> list[float | None]:
-    """An interval for JSON: its ends, ``null`` where there is none (fewer than two episodes)."""
-    return [json_number(end) for end in interval]
 
 
 def missing_notes(results: Sequence[EvaluationResult]) -> list[str]:
@@ -73,8 +62,6 @@ def plus_minus(value: float, interval: tuple[float, float]) -> str:
 
 def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[object]]]:
     """Headers and rows of the results table (best expected-risk return first), values as text."""
-    from heartpole.evaluation import rank
-
     headers = [
         "rank",
         "policy",

@@ -109,3 +109,13 @@ def bootstrap_interval(
     tail = (1.0 - confidence) / 2.0 * 100.0
     low, high = np.percentile(stats, [tail, 100.0 - tail])
     return float(low), float(high)
+
+
+def json_number(value: float) -> float | None:
+    """``value`` for JSON: ``None`` (``null``) for NaN and infinities, which JSON does not have."""
+    return float(value) if math.isfinite(value) else None
+
+
+def json_interval(interval: Sequence[float]) -> list[float | None]:
+    """An interval for JSON: its ends, ``null`` where there is none (fewer than two episodes)."""
+    return [json_number(end) for end in interval]

@@ -174,7 +174,7 @@ def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> Evalua
     """Evaluate ``policy`` (from :func:`_policy`) with the run options of ``args``, a progress bar on stderr
     named ``spec``, errors as one line."""
     from heartpole.evaluation import evaluate
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
     with progress(args.episodes * max_steps, f"{spec}") as bar:

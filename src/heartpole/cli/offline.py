@@ -198,7 +198,7 @@ def _offline(module: str) -> ModuleType:
 
 
 def _max_steps(env_id: str) -> int:
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     return int(env_dynamics(env_id).params.max_steps)
 

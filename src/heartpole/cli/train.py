@@ -1,8 +1,8 @@
 """``heartpole train``: train an agent with Stable-Baselines3 on the native vector env, then evaluate it.
 
-The work is done by :mod:`heartpole.training` (:func:`heartpole.training.train`; imported only when the
-command runs, so the rest of the command line works without the optional ``train`` extra); this module
-parses, checks and prints.
+The work is done by [`heartpole.launch.train`][heartpole.launch.train] (on [`heartpole.training`][heartpole.training]
+or the other backends; imported only when the command runs, so the rest of the command line works without
+the optional ``train`` extra); this module parses, checks and prints.
 """
 
 from __future__ import annotations
@@ -228,7 +228,7 @@ def _score_rate(text: str) -> ScoreRate:
 def run_train(args: argparse.Namespace) -> int:
     """``heartpole train``: check everything, train (one seed or several), print the evaluation."""
     _require_training_extra()
-    from heartpole import training
+    from heartpole import launch, training
 
     if args.backend not in training.BACKENDS:
         raise CommandError(f"unknown backend {args.backend!r}; choose one of {', '.join(training.BACKENDS)}")
@@ -243,7 +243,7 @@ def run_train(args: argparse.Namespace) -> int:
     try:
         if config.timesteps < config.n_envs:
             raise ValueError(f"--timesteps ({config.timesteps}) must be at least --n-envs ({config.n_envs})")
-        out = training.check_run(config, args.out or training.default_out(config, args.backend), args.backend,
+        out = launch.check_run(config, args.out or launch.default_out(config, args.backend), args.backend,
                                  args.force)  # fmt: skip
     except (ValueError, OSError) as error:
         raise CommandError(" ".join(str(error).split())) from None
@@ -258,7 +258,7 @@ def run_train(args: argparse.Namespace) -> int:
 
     try:
         with _ray_errors(args, out):
-            result = training.train(
+            result = launch.train(
                 config, out, seeds=seeds, backend=args.backend, ray=args.ray, address=args.address,
                 cpus_per_trial=cpus_per_trial, force=args.force, eval_episodes=episodes, eval_seed=eval_seed,
                 on_run=say, on_compiled=compiled,

@@ -122,7 +122,7 @@ def run_tune(args: argparse.Namespace) -> int:
     settings = build_settings(args)
     cpus = whole_number("--cpus-per-trial", args.cpus_per_trial, 1)
     from heartpole import scale
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     try:
         env_dynamics(settings.base.env_id)

@@ -8,34 +8,28 @@ entropy bonus; VecNormalize's running observation and discounted-return statisti
 of :class:`heartpole.training.TrainingReward`; and bootstrapping through the time limit from the value of
 the episode's last observation (``info["final_observation"]``), as SB3 does for ``TimeLimit.truncated``.
 
-:func:`train_seeds` trains several seeds in one compiled call and writes what ``heartpole train`` writes
-for SB3 (the trained weights are saved as an SB3 ``model.zip`` plus ``vecnormalize.pkl``, so that
-:func:`heartpole.load_policy`, ``heartpole evaluate`` and the plots read them unchanged). It needs the
-``train`` extra as well (for the saved format and the evaluation protocol).
+[`train_compiled`][heartpole.jax.ppo.train_compiled] trains several seeds in one compiled call;
+[`heartpole.jax.export`][heartpole.jax.export] saves them as ``heartpole train`` saves SB3's runs, evaluates
+and summarises them.
 """
 
 from __future__ import annotations
 
 import math
 import os
-import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple, cast
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heartpole import files, policies
 from heartpole.jax.env import EnvParams, HeartPoleJax
 from heartpole.model import TIME_ELAPSED, heart_attack_risk
-
-if TYPE_CHECKING:
-    from stable_baselines3.common.running_mean_std import RunningMeanStd
 
 CACHE_DIR_VARIABLE = "HEARTPOLE_JAX_CACHE"
 """Environment variable naming the persistent compilation cache's folder (default: the user's cache)."""
@@ -432,142 +426,43 @@ def learning_curve(ended: Any, settings: PPOSettings) -> list[dict[str, float]]:
 
 
 # ------------------------------------------------------------------------------------------------------
-# heartpole train --backend jax: train, save as SB3 files, evaluate, summarise
+# training several seeds in one compiled call (heartpole.jax.export saves, evaluates and summarises them)
 
 
-def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
-    """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's: ``model.zip``
-    (an SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics)."""
-    import torch
-    from stable_baselines3.common.vec_env import VecNormalize
+class Trained(NamedTuple):
+    """What [`train_compiled`][heartpole.jax.ppo.train_compiled] returns: every seed's trained runner and
+    learning-curve metrics (stacked along a first axis of seeds), the settings, and the timings."""
 
-    from heartpole import training
+    runners: Runner
+    ended: Any
+    settings: PPOSettings
+    timings: dict[str, float]
 
-    model, venv = training.build_model(config)
-    try:
-        state = model.policy.state_dict()
-        for torch_name, layers in (("mlp_extractor.policy_net", "actor"), ("mlp_extractor.value_net", "critic")):
-            for i, (weight, bias) in enumerate(runner.network[layers][:-1]):
-                state[f"{torch_name}.{2 * i}.weight"] = torch.as_tensor(np.asarray(weight).T.copy())
-                state[f"{torch_name}.{2 * i}.bias"] = torch.as_tensor(np.asarray(bias).copy())
-        for torch_name, layers in (("action_net", "actor"), ("value_net", "critic")):
-            weight, bias = runner.network[layers][-1]
-            state[f"{torch_name}.weight"] = torch.as_tensor(np.asarray(weight).T.copy())
-            state[f"{torch_name}.bias"] = torch.as_tensor(np.asarray(bias).copy())
-        model.policy.load_state_dict(state)
-        # build_model makes a PPO here (typed as SB3's BaseAlgorithm, which has no n_steps)
-        model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps  # type: ignore[attr-defined]
-        model.save(folder / policies.MODEL_NAME)
-        if isinstance(venv, VecNormalize):
-            obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
-            for stats, ours in ((obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
-                stats.mean = np.asarray(ours.mean, dtype=np.float64).reshape(stats.mean.shape)
-                stats.var = np.asarray(ours.var, dtype=np.float64).reshape(stats.var.shape)
-                stats.count = float(ours.count)
-            venv.training = False
-            venv.save(str(folder / policies.VECNORMALIZE_NAME))
-    finally:
-        venv.close()
+    def seed(self, i: int) -> tuple[Runner, list[dict[str, float]]]:
+        """The ``i``-th seed's runner and learning-curve rows."""
+
+        def pick(tree: Any) -> Any:
+            return jax.tree_util.tree_map(lambda x: x[i], tree)
+
+        return pick(self.runners), learning_curve(pick(self.ended), self.settings)
 
 
-def _seed_result(
-    config: Any, runner: Runner, curve: list[dict[str, float]], folder: Path, timings: dict[str, float],
-    eval_episodes: int, eval_seed: int, progress: bool, final_folder: Path,
-) -> dict[str, Any]:  # fmt: skip
-    """Write one seed's files into ``folder``, evaluate the saved model as ``heartpole evaluate`` would,
-    and return its line of the summary (:func:`heartpole.training.run_summary`)."""
-    from heartpole import training
-    from heartpole.evaluation import evaluate
-    from heartpole.policies import load_policy
-
-    started = time.perf_counter()
-    folder.mkdir(parents=True, exist_ok=True)
-    export_sb3(config, runner, folder)
-    training.write_curve(folder / policies.CURVE_NAME, curve)
-    sidecar = {
-        **training.run_description(config),
-        "backend": "jax",
-        "vecnormalize": policies.VECNORMALIZE_NAME if config.normalize_observations or config.normalize_rewards
-        else None,
-        **{key: round(value, 2) for key, value in timings.items()},
-        "versions": {**training._versions(), "jax": jax.__version__},
-    }  # fmt: skip
-    files.write_json(folder / policies.SIDECAR_NAME, sidecar)
-    policy = load_policy(str(folder / policies.MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
-    policy.name = str(final_folder / policies.MODEL_NAME)  # type: ignore[attr-defined]
-    result = evaluate(policy, config.env_id, episodes=eval_episodes, seed=eval_seed,
-                      env_kwargs=dict(config.env_kwargs), progress=progress)  # fmt: skip
-    evaluation = result.to_dict()
-    files.write_json(folder / training.EVALUATION_FILE, evaluation)
-    own = time.perf_counter() - started
-    wall = timings["compile_seconds"] + timings["train_seconds"] + own
-    sidecar.update(eval_seconds=round(own, 2), wall_seconds=round(wall, 2))
-    files.write_json(folder / policies.SIDECAR_NAME, sidecar)
-    return training.run_summary(config, evaluation, timings["train_seconds"], wall) | {
-        "compile_seconds": round(timings["compile_seconds"], 2)
-    }
-
-
-def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Any:
-    """A tqdm bar over all seeds' env steps (shown as :class:`heartpole.training.ProgressBar` shows its own)."""
-    from tqdm import tqdm
-
-    disable = True if not show else (False if os.environ.get("HEARTPOLE_PROGRESS") == "1" else None)
-    name = f"training ppo (jax) seed{'s' if len(seeds) > 1 else ''} {','.join(map(str, seeds))}"
-    return tqdm(total=total, desc=name, unit="step", unit_scale=True, disable=disable)
-
-
-def _warm_up(env_id: str, env_kwargs: dict[str, Any]) -> threading.Thread:
-    """Start, on a thread beside training (which runs compiled code without the GIL), what saving and
-    evaluating the seeds will wait for otherwise: PyTorch's lazily imported compiler (every
-    ``torch.optim`` optimiser imports it, and SB3's models build one), the NumPy env's compiled kernels
-    and the optimum the regret is measured against. Errors are left for the real work to raise."""
-
-    def work() -> None:
-        try:
-            import torch._dynamo  # noqa: F401
-
-            from heartpole.evaluation import evaluate
-
-            evaluate("nothing", env_id, episodes=2, env_kwargs=env_kwargs)
-        except Exception:  # noqa: BLE001, S110 - the same work runs again afterwards and reports its errors
-            pass
-
-    thread = threading.Thread(target=work, name="heartpole-warm-up", daemon=True)
-    thread.start()
-    return thread
-
-
-def train_seeds(
+def train_compiled(
     config: Any,
-    seeds: Sequence[int] | None,
-    folder: str | os.PathLike[str],
+    seeds: Sequence[int],
     *,
-    eval_episodes: int = 2000,
-    eval_seed: int = 0,
     progress: bool = False,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
-    final_folder: str | os.PathLike[str] | None = None,
     on_compiled: Callable[[float], None] | None = None,
-) -> dict[str, Any]:
-    """Train ``config`` (PPO) for every seed in one compiled, vmapped call, then evaluate each seed.
+) -> Trained:
+    """Train ``config`` (a [`TrainConfig`][heartpole.training.TrainConfig] of PPO) for every one of ``seeds``
+    in one compiled, vmapped call; nothing is written.
 
-    With ``seeds=None`` one run of ``config.seed`` is written into ``folder`` itself and its summary
-    returned (as :func:`heartpole.training.train_run`); otherwise each seed goes to ``folder/seed_<s>/``
-    and ``folder/summary.json`` aggregates them (as :func:`heartpole.training.train_seeds`). Timings:
-    ``compile_seconds`` (tracing and compiling, or loading from the persistent cache) and
+    Timings: ``compile_seconds`` (tracing and compiling, or loading from the persistent cache) and
     ``train_seconds`` (the compiled calls, all seeds together) are kept apart. Training runs in about 20
     compiled pieces of whole updates, between which the progress bar moves. ``on_compiled`` is called
     with the compile time before training starts.
     """
-    from heartpole import training
-
     settings = PPOSettings.from_config(config)
-    single = seeds is None
-    seeds = [int(config.seed)] if seeds is None else [int(seed) for seed in seeds]
-    if not seeds or len(set(seeds)) != len(seeds):
-        raise ValueError(f"give distinct seeds, got {list(seeds)}")
-    folder, final = Path(folder), Path(final_folder if final_folder is not None else folder)
     enable_compilation_cache()
     env = HeartPoleJax.from_id(config.env_id, **dict(config.env_kwargs))
     keys = jax.vmap(jax.random.key)(jnp.asarray(seeds, dtype=jnp.uint32))
@@ -580,7 +475,6 @@ def train_seeds(
     compile_seconds = time.perf_counter() - started
     if on_compiled is not None:
         on_compiled(compile_seconds)
-    warm_up = _warm_up(config.env_id, dict(config.env_kwargs))
     started = time.perf_counter()
     pieces = []
     with _progress_bar(settings.num_updates * settings.rollout * len(seeds), seeds, progress) as bar:
@@ -590,23 +484,13 @@ def train_seeds(
             bar.update(chunk * settings.rollout * len(seeds))
     ended = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs, axis=1), *pieces)
     timings = {"compile_seconds": compile_seconds, "train_seconds": time.perf_counter() - started}
-    warm_up.join()
-    runs: list[dict[str, Any]] = []
-    for i, seed in enumerate(seeds):
+    return Trained(runners, ended, settings, timings)
 
-        def pick(tree: Any, i: int = i) -> Any:
-            return jax.tree_util.tree_map(lambda x: x[i], tree)
 
-        seed_config = replace(config, seed=seed)
-        where = (folder, final) if single else (folder / f"seed_{seed}", final / f"seed_{seed}")
-        result = _seed_result(seed_config, pick(runners), learning_curve(pick(ended), settings), where[0], timings,
-                              eval_episodes, eval_seed, progress, where[1])  # fmt: skip
-        runs.append(result)
-        if on_run is not None:
-            on_run(result)
-    if single:
-        return runs[0]
-    summary = training.seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
-    summary |= {"backend": "jax", **{key: round(value, 2) for key, value in timings.items()}}
-    files.write_json(folder / training.SUMMARY_FILE, summary)
-    return summary
+def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Any:
+    """A tqdm bar over all seeds' env steps (shown as :class:`heartpole.training.ProgressBar` shows its own)."""
+    from tqdm import tqdm
+
+    disable = True if not show else (False if os.environ.get("HEARTPOLE_PROGRESS") == "1" else None)
+    name = f"training ppo (jax) seed{'s' if len(seeds) > 1 else ''} {','.join(map(str, seeds))}"
+    return tqdm(total=total, desc=name, unit="step", unit_scale=True, disable=disable)

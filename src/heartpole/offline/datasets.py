@@ -42,7 +42,8 @@ from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
-from heartpole.policies import Policy, env_dynamics, load_policy, policy_name, quiet_version_warnings
+from heartpole.policies import Policy, load_policy, policy_name
+from heartpole.registry import env_dynamics, quiet_version_warnings
 
 AUTHOR = "HeartPole contributors"
 """The datasets' author. The project has no public address or e-mail of its own, so the datasets name none:

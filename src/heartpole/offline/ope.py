@@ -45,8 +45,7 @@ from heartpole.offline.behaviour import action_probabilities
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
 from heartpole.policies import Policy, load_policy, policy_name
-from heartpole.reporting import json_interval, json_number
-from heartpole.stats import confidence_interval
+from heartpole.stats import confidence_interval, json_interval, json_number
 
 ESTIMATORS = ("PDIS", "WPDIS", "FQE", "DR")
 DEFAULT_RIDGE = 1e-6

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from heartpole.offline.behaviour import EpsilonGreedy, check_actions, check_deterministic, sample
-from heartpole.policies import quiet_version_warnings
+from heartpole.registry import quiet_version_warnings
 
 if TYPE_CHECKING:
     from minari import MinariDataset

@@ -15,10 +15,12 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from heartpole.evaluation import chunk_seed, plus_minus, policy_rng
+from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
 from heartpole.offline.behaviour import check_actions
-from heartpole.policies import Policy, load_policy, policy_name, quiet_version_warnings
+from heartpole.policies import Policy, load_policy, policy_name
+from heartpole.registry import quiet_version_warnings
+from heartpole.reporting import plus_minus
 from heartpole.stats import confidence_interval
 
 if TYPE_CHECKING:

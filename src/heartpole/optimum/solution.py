@@ -171,7 +171,7 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
         NotCoveredError: a variant the solver does not cover (the message says why).
         ValueError: an unknown env or bad arguments.
     """
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     check_integer("grid", grid, 4)
     dynamics = env_dynamics(env_id, env_kwargs)
@@ -211,7 +211,7 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
     Raises:
         NotCoveredError, ValueError: as :func:`solve`.
     """
-    from heartpole.policies import env_dynamics
+    from heartpole.registry import env_dynamics
 
     kwargs = dict(env_kwargs or {})
     return optimum_for(env_dynamics(env_id, kwargs), env_id, kwargs)

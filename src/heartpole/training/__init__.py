@@ -2,7 +2,9 @@
 
 This package needs the optional ``train`` extra (``pip install 'heartpole[train]'``: Stable-Baselines3,
 PyTorch, tqdm); ``import heartpole`` never imports it. Its parts, each a module of its own (``adapter``,
-``reward``, ``presets``, ``callbacks``, ``runs``, ``outputs``, ``backends``), all importable from here:
+``reward``, ``presets``, ``callbacks``, ``runs``, ``outputs``), all importable from here, with the run
+records every training backend shares ([`heartpole.records`][heartpole.records]: the files, the evaluation
+of the saved model, the summaries):
 
 * :class:`HeartPoleSB3VecEnv` puts HeartPole's native vector env behind SB3's ``VecEnv`` interface, so
   PPO, A2C and DQN step all envs with one array operation. Episodes end by truncation only, reported as
@@ -17,8 +19,10 @@ PyTorch, tqdm); ``import heartpole`` never imports it. Its parts, each a module 
   normalised), ``heartpole.json``, ``learning_curve.csv`` and ``evaluation.json`` (2,000 episodes of
   :func:`heartpole.evaluation.evaluate` on the saved files); :func:`train_seeds` trains several seeds and
   summarises them with the interquartile mean and a bootstrap interval (rliable's recommendation).
-* :func:`train` (module ``backends``) is what ``heartpole train`` runs: one seed or several, in a staged
-  output folder, on Stable-Baselines3, on Ray Tune trials, or with PPO compiled in JAX.
+
+Picking a backend (Stable-Baselines3 here, Ray Tune trials, or PPO compiled in JAX) is not this package's
+work but the launcher's, one layer up: [`heartpole.launch.train`][heartpole.launch.train] is what
+``heartpole train`` runs.
 
 Why naive training fails on HeartPole, and what the default does about it
 --------------------------------------------------------------------------
@@ -61,18 +65,26 @@ if importlib.util.find_spec("stable_baselines3") is None or importlib.util.find_
 
 # ruff: noqa: E402 - the parts are imported after the check above, so a missing extra says what to install
 
-from heartpole.training.adapter import HeartPoleSB3VecEnv, make_vec_env
-from heartpole.training.backends import BACKENDS, Backend, check_run, default_out, train
-from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
-from heartpole.training.outputs import (
+from heartpole.records import (
+    AGGREGATE_LABELS,
+    AGGREGATED,
     EVALUATION_FILE,
     SUMMARY_FILE,
-    _versions,
-    check_output_folder,
-    staged_output,
+    aggregate,
+    aggregate_figures,
+    cpu_total,
+    env_solved_bar,
+    meets_bar,
+    run_description,
+    run_summary,
+    seeds_summary,
     write_curve,
 )
+from heartpole.training.adapter import HeartPoleSB3VecEnv, make_vec_env
+from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
+from heartpole.training.outputs import check_output_folder, staged_output
 from heartpole.training.presets import (
+    BACKENDS,
     DEFAULT_ALGO,
     DEFAULT_HYPERPARAMETERS,
     DEFAULT_TIMESTEPS,
@@ -84,28 +96,19 @@ from heartpole.training.presets import (
     RATE_SHARE_OF_BEST,
     SOLVED_HEART_ATTACKS,
     SOLVED_SCORE,
+    Backend,
     ScoreRate,
     TrainConfig,
-    env_solved_bar,
     load_preset,
-    meets_bar,
     preset_config,
     save_preset,
     shaped_reward_rate,
 )
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 from heartpole.training.runs import (
-    AGGREGATE_LABELS,
-    AGGREGATED,
     RunCallback,
     TrainedModel,
-    aggregate,
-    aggregate_figures,
     build_model,
-    cpu_total,
-    run_description,
-    run_summary,
-    seeds_summary,
     train_model,
     train_run,
     train_seeds,
@@ -160,9 +163,5 @@ __all__ = [
     "RunCallback",
     "Backend",
     "BACKENDS",
-    "default_out",
-    "check_run",
-    "train",
     "TRAIN_EXTRA",
-    "_versions",
 ]

@@ -17,10 +17,11 @@ if TYPE_CHECKING:
     from heartpole.vector import HeartPoleVectorEnv
 
 from stable_baselines3.common.monitor import Monitor
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 from heartpole.model import check_integer
+from heartpole.records import normalize_env
 from heartpole.training.reward import ENV_REWARD, TrainingReward
 
 # ------------------------------------------------------------------------------------------------------
@@ -66,7 +67,7 @@ class HeartPoleSB3VecEnv(VecEnv):
         env_kwargs: Mapping[str, Any] | None = None,
     ) -> None:
         check_integer("num_envs", num_envs, 1)
-        from heartpole.policies import quiet_version_warnings
+        from heartpole.registry import quiet_version_warnings
 
         self.env_id = env_id
         with quiet_version_warnings():  # training on v0 is deliberate
@@ -247,6 +248,4 @@ def make_vec_env(
     venv: VecEnv = HeartPoleSB3VecEnv(env_id, n_envs, reward=reward, env_kwargs=env_kwargs)
     if seed is not None:
         venv.seed(seed)
-    if normalize_observations or normalize_rewards:
-        venv = VecNormalize(venv, norm_obs=normalize_observations, norm_reward=normalize_rewards, gamma=gamma)
-    return venv
+    return normalize_env(venv, observations=normalize_observations, rewards=normalize_rewards, gamma=gamma)

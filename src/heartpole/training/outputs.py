@@ -2,24 +2,14 @@
 
 from __future__ import annotations
 
-import csv
 import os
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-
-import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
-    CURVE_COLUMNS,
-    SIDECAR_NAME,
-)
-
-EVALUATION_FILE = "evaluation.json"
-SUMMARY_FILE = "summary.json"
+from heartpole.policies import SIDECAR_NAME
+from heartpole.records import SUMMARY_FILE
 
 # ------------------------------------------------------------------------------------------------------
 # output folders and files
@@ -63,25 +53,3 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
     with files.staged_folder(out) as staging:
         yield staging
         check_output_folder(out, force)
-
-
-def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
-    """Write the learning curve as CSV with :data:`CURVE_COLUMNS`."""
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=CURVE_COLUMNS)
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({key: row[key] for key in CURVE_COLUMNS})
-
-
-def _versions() -> dict[str, str]:
-    import stable_baselines3
-    import torch
-
-    return {
-        "heartpole": heartpole.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": torch.__version__,
-        "gymnasium": gym.__version__,
-        "numpy": np.__version__,
-    }

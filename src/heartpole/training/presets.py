@@ -16,6 +16,8 @@ from heartpole.model import check_integer
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
+from heartpole.records import env_solved_bar as env_solved_bar  # the bars every backend's summary reports
+from heartpole.records import meets_bar as meets_bar
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
 SOLVED_HEART_ATTACKS = 1.30
@@ -240,8 +242,7 @@ def shaped_reward_rate(
     env_id: str, env_kwargs: Mapping[str, Any], score_rate: ScoreRate = "best"
 ) -> float | Literal["auto"]:
     """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
-    from heartpole.policies import env_dynamics
-    from heartpole.registry import best_known_rate
+    from heartpole.registry import best_known_rate, env_dynamics
 
     if score_rate == "auto":
         return "auto"
@@ -252,21 +253,6 @@ def shaped_reward_rate(
     if not number:
         raise ValueError(f"score_rate must be 'best', 'auto' or a finite number, got {score_rate!r}")
     return float(score_rate)
-
-
-def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The solved bar of ``env_id`` (:func:`heartpole.registry.solved_bar`) as a JSON-safe dict."""
-    from heartpole.policies import env_dynamics
-    from heartpole.registry import solved_bar
-
-    bar = solved_bar(env_dynamics(env_id, env_kwargs))
-    return {"heart_attacks_per_episode_at_most": bar.heart_attacks_at_most, "score_at_least": bar.score_at_least}
-
-
-def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
-    """Whether an evaluation's heart attacks and score meet ``bar`` (from :func:`env_solved_bar`)."""
-    score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
-    return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
 
 
 PRESET_FORMAT = "heartpole-preset/1"

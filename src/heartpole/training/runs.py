@@ -4,29 +4,35 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeAlias
 
-import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
-    CURVE_NAME,
-    MODEL_NAME,
-    SIDECAR_NAME,
-    VECNORMALIZE_NAME,
+from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_NAME
+from heartpole.policies.saved import file_sha256
+from heartpole.records import (
+    SUMMARY_FILE,
+    LinearSchedule,
+    evaluate_saved,
+    run_description,
+    run_summary,
+    sb3_model,
+    seeds_summary,
+    versions,
+    write_curve,
 )
-from heartpole.stats import bootstrap_interval, interquartile_mean
 from heartpole.training.adapter import make_vec_env
 from heartpole.training.callbacks import LearningCurve, ProgressBar, RewardStatsWindow
-from heartpole.training.outputs import EVALUATION_FILE, SUMMARY_FILE, _versions, write_curve
-from heartpole.training.presets import TrainConfig, env_solved_bar, meets_bar
+from heartpole.training.presets import TrainConfig
+
+__all__ = ["RunCallback", "TrainedModel", "LinearSchedule", "build_model", "train_model", "train_run", "train_seeds"]
 
 RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
 """Called with each seed's summary (:func:`run_summary`) as it finishes."""
@@ -45,23 +51,8 @@ class TrainedModel:
     seconds: float
 
 
-@dataclass(frozen=True)
-class LinearSchedule:
-    """A learning rate falling linearly from ``initial`` to 0 over the run: SB3 calls it with the share of
-    the run left after the rollout it is about to learn from (``anneal_learning_rate`` in the
-    hyperparameters; the JAX trainer follows the same schedule)."""
-
-    initial: float
-
-    def __call__(self, progress_remaining: float) -> float:
-        """The learning rate with ``progress_remaining`` (1 at the start, 0 at the end) of the run left."""
-        return self.initial * max(progress_remaining, 0.0)
-
-
 def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
     """The SB3 model of ``config`` on a freshly made, seeded adapter (``VecNormalize``-wrapped if asked)."""
-    import stable_baselines3 as sb3
-
     env = make_vec_env(
         config.env_id,
         config.n_envs,
@@ -72,23 +63,7 @@ def build_model(config: TrainConfig) -> tuple[BaseAlgorithm, VecEnv]:
         gamma=config.gamma,
         env_kwargs=config.env_kwargs,
     )
-    algorithm = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}[config.algo]
-    hyperparameters = dict(config.hyperparameters)
-    if hyperparameters.pop("anneal_learning_rate", False):
-        hyperparameters["learning_rate"] = LinearSchedule(float(hyperparameters.get("learning_rate", 3e-4)))
-    if config.algo == "ppo" and "batch_size" in hyperparameters:  # a minibatch cannot exceed the rollout
-        rollout = int(hyperparameters.get("n_steps", 2048)) * config.n_envs
-        hyperparameters["batch_size"] = min(int(hyperparameters["batch_size"]), rollout)
-    model = algorithm(
-        "MlpPolicy",
-        env,
-        policy_kwargs={"net_arch": list(config.net_arch)},
-        seed=config.seed,
-        device="cpu",
-        verbose=0,
-        **hyperparameters,
-    )
-    return model, env
+    return sb3_model(config, env), env
 
 
 def train_model(config: TrainConfig, *, progress: bool = False, description: str | None = None) -> TrainedModel:
@@ -127,9 +102,6 @@ def train_run(
     ``heartpole evaluate`` does). ``final_folder`` is where the files will end up if ``folder`` is a
     staging folder (see :func:`staged_output`); the evaluation names the model by that path.
     """
-    from heartpole.evaluation import evaluate
-    from heartpole.policies import load_policy
-
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -138,8 +110,6 @@ def train_run(
     if trained.normalizer is not None:
         trained.normalizer.save(str(folder / VECNORMALIZE_NAME))
     write_curve(folder / CURVE_NAME, trained.curve)
-    from heartpole.training.models import file_sha256
-
     sidecar: dict[str, Any] = {
         **run_description(config),
         "model": MODEL_NAME,
@@ -148,23 +118,12 @@ def train_run(
         "vecnormalize": VECNORMALIZE_NAME if trained.normalizer is not None else None,
         "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_NAME) if trained.normalizer is not None else None,
         "train_seconds": round(trained.seconds, 2),
-        "versions": _versions(),
+        "versions": versions(),
     }
-    files.write_json(folder / SIDECAR_NAME, sidecar)
-    eval_started = time.perf_counter()
-    policy = load_policy(str(folder / MODEL_NAME), config.env_id, env_kwargs=dict(config.env_kwargs))
-    policy.name = str(Path(final_folder if final_folder is not None else folder) / MODEL_NAME)  # type: ignore[attr-defined]
-    result = evaluate(
-        policy,
-        config.env_id,
-        episodes=eval_episodes,
-        seed=eval_seed,
-        env_kwargs=dict(config.env_kwargs),
-        progress=progress,
-    )
-    evaluation = result.to_dict()
-    files.write_json(folder / EVALUATION_FILE, evaluation)
-    eval_seconds = time.perf_counter() - eval_started
+    evaluation, eval_seconds = evaluate_saved(
+        config, folder, sidecar, eval_episodes=eval_episodes, eval_seed=eval_seed, progress=progress,
+        final_folder=Path(final_folder if final_folder is not None else folder),
+    )  # fmt: skip
     sidecar.update(
         eval_seconds=round(eval_seconds, 2),
         wall_seconds=round(time.perf_counter() - started, 2),
@@ -172,52 +131,6 @@ def train_run(
     )
     files.write_json(folder / SIDECAR_NAME, sidecar)
     return run_summary(config, evaluation, trained.seconds, sidecar["wall_seconds"], sidecar["cpu_seconds"])
-
-
-def run_description(config: TrainConfig) -> dict[str, Any]:
-    """What every backend's ``heartpole.json`` says first: the run's algorithm, env, seed, steps, preset,
-    policy class and whole configuration."""
-    return {
-        "algo": config.algo,
-        "env_id": config.env_id,
-        "seed": config.seed,
-        "timesteps": config.timesteps,
-        "preset": config.preset,
-        "policy": "MlpPolicy",
-        "config": config.to_dict(),
-    }
-
-
-def run_summary(
-    config: TrainConfig, evaluation: Mapping[str, Any], train_seconds: float, wall: float, cpu: float | None = None
-) -> dict[str, Any]:
-    """One run's line in a summary: seed, evaluation figures, whether it is solved, timings (``cpu``: the
-    CPU time of the process that trained and evaluated it, all its threads, where measured).
-
-    Solved means a regret whose 95% upper bound is at most :data:`heartpole.evaluation.SOLVED_REGRET` where
-    the optimum is known (:mod:`heartpole.optimum`), and the env's heart-attack and score bar elsewhere.
-    """
-    from heartpole.evaluation import SOLVED_REGRET
-
-    bar = env_solved_bar(config.env_id, config.env_kwargs)
-    by_regret = evaluation.get("solved")
-    return {
-        "seed": config.seed,
-        "mean_return": evaluation["mean_return"],
-        "ci95": evaluation["ci95"],
-        "expected_return": evaluation["expected_return"],
-        "expected_ci95": evaluation["expected_ci95"],
-        "heart_attacks_per_episode": evaluation["heart_attacks_per_episode"],
-        "score": evaluation["score"],
-        "drinks_per_episode": evaluation["drinks_per_episode"],
-        "sleeps_per_episode": evaluation["sleeps_per_episode"],
-        "regret": evaluation.get("regret"),
-        "regret_ci95": evaluation.get("regret_ci95"),
-        "solved": meets_bar(evaluation, bar) if by_regret is None else by_regret,
-        "solved_bar": bar if by_regret is None else {"regret_at_most": SOLVED_REGRET},
-        "train_seconds": round(train_seconds, 2),
-        "wall_seconds": round(wall, 2),
-    } | ({} if cpu is None else {"cpu_seconds": round(cpu, 2)})
 
 
 def train_seeds(
@@ -233,10 +146,10 @@ def train_seeds(
 ) -> dict[str, Any]:
     """Train ``config`` once per seed into ``folder/seed_<s>/`` and write ``folder/summary.json``.
 
-    The summary lists every seed's figures and aggregates them across seeds with the interquartile mean
-    and a 95% percentile-bootstrap interval over seeds (:func:`aggregate`), and counts the seeds that meet
-    the solved bar. ``on_run`` is called with each seed's summary as soon as it is done; ``final_folder``
-    is as for :func:`train_run`.
+    The summary lists every seed's figures and aggregates them across seeds with the interquartile mean and a 95%
+    percentile-bootstrap interval over seeds ([`aggregate`][heartpole.records.aggregate]), and counts the seeds that
+    meet the solved bar. ``on_run`` is called with each seed's summary as soon as it is done; ``final_folder`` is as for
+    :func:`train_run`.
     """
     if not seeds:
         raise ValueError("give at least one seed")
@@ -259,75 +172,3 @@ def train_seeds(
     summary = seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)
     files.write_json(folder / SUMMARY_FILE, summary)
     return summary
-
-
-def seeds_summary(
-    config: TrainConfig,
-    seeds: Sequence[int],
-    runs: Sequence[Mapping[str, Any]],
-    *,
-    eval_episodes: int,
-    eval_seed: int,
-) -> dict[str, Any]:
-    """The content of ``summary.json`` for ``runs`` (:func:`train_run` results) of ``config`` over ``seeds``."""
-    return {
-        "config": replace(config, seed=int(seeds[0])).to_dict() | {"seed": None},
-        "seeds": [int(s) for s in seeds],
-        "eval_episodes": eval_episodes,
-        "eval_seed": eval_seed,
-        "runs": list(runs),
-        "aggregate": aggregate(runs),
-        "solved_bar": runs[0]["solved_bar"] if runs else env_solved_bar(config.env_id, config.env_kwargs),
-        "solved_seeds": sum(run["solved"] for run in runs),
-    } | cpu_total(runs)
-
-
-def cpu_total(runs: Sequence[Mapping[str, Any]]) -> dict[str, float]:
-    """``{"cpu_seconds": total}`` over ``runs`` when every run measured its CPU time, else ``{}``: the
-    figure that says what a number of seeds costs, wherever and however side by side they ran."""
-    if not runs or any(run.get("cpu_seconds") is None for run in runs):
-        return {}
-    return {"cpu_seconds": round(sum(float(run["cpu_seconds"]) for run in runs), 2)}
-
-
-# ------------------------------------------------------------------------------------------------------
-# aggregates across seeds
-
-AGGREGATED = ("mean_return", "expected_return", "heart_attacks_per_episode", "score", "wall_seconds")
-
-
-def aggregate(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """For each figure of :data:`AGGREGATED`: IQM, 95% bootstrap interval of the IQM, mean, min and max."""
-    out: dict[str, Any] = {"seeds": len(runs), "method": "interquartile mean over seeds, 95% percentile bootstrap"}
-    for key in AGGREGATED:
-        values = [float(run[key]) for run in runs if run.get(key) is not None]
-        if not values:
-            continue
-        out[key] = {
-            "iqm": float(interquartile_mean(values)),
-            "iqm_ci95": list(bootstrap_interval(values)),
-            "mean": float(np.mean(values)),
-            "min": float(np.min(values)),
-            "max": float(np.max(values)),
-        }
-    return out
-
-
-AGGREGATE_LABELS: tuple[tuple[str, str, int], ...] = (
-    ("heart_attacks_per_episode", "heart attacks/episode", 3),
-    ("score", "score", 4),
-    ("mean_return", "return", 2),
-    ("expected_return", "expected-risk return", 3),
-    ("wall_seconds", "wall time (s)", 0),
-)
-
-
-def aggregate_figures(aggregate_: Mapping[str, Any]) -> list[tuple[str, str]]:
-    """``(label, "iqm [low, high]")`` for each figure of an :func:`aggregate` result, for tables and text."""
-    figures = []
-    for key, label, digits in AGGREGATE_LABELS:
-        if key in aggregate_:
-            item = aggregate_[key]
-            low, high = item["iqm_ci95"]
-            figures.append((label, f"{item['iqm']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"))
-    return figures

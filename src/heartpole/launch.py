@@ -1,9 +1,12 @@
 """Where a training run runs: Stable-Baselines3 in this process, SB3 seeds as Ray Tune trials, or PPO in JAX.
 
-:func:`train` is what ``heartpole train`` calls once its arguments are checked: it stages the output folder
-(nothing is left half written), trains one seed or several on the chosen backend, and returns the run's
-summary (one seed: :func:`heartpole.training.train_run`'s; several: :func:`heartpole.training.train_seeds`'s).
-Every backend writes the same files, so ``heartpole evaluate`` and ``heartpole plot`` read them alike.
+[`train`][heartpole.launch.train] is what ``heartpole train`` calls once its arguments are checked: it stages
+the output folder (nothing is left half written), trains one seed or several on the chosen backend, and returns
+the run's summary (one seed: [`train_run`][heartpole.training.train_run]'s; several:
+[`train_seeds`][heartpole.training.train_seeds]'s). Every backend writes the same files
+([`heartpole.records`][heartpole.records]), so ``heartpole evaluate`` and ``heartpole plot`` read them alike.
+This module sits above the backends it picks from ([`heartpole.training`][heartpole.training],
+[`heartpole.jax`][heartpole.jax], [`heartpole.scale`][heartpole.scale]); none of them imports it.
 """
 
 from __future__ import annotations
@@ -13,9 +16,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from heartpole.training.outputs import check_output_folder, staged_output
-from heartpole.training.presets import BACKENDS, Backend, TrainConfig
-from heartpole.training.runs import RunCallback, train_run, train_seeds
+from heartpole.registry import env_dynamics
+from heartpole.training import RunCallback, TrainConfig, check_output_folder, staged_output, train_run, train_seeds
+from heartpole.training.presets import BACKENDS, Backend
 
 __all__ = ["BACKENDS", "Backend", "check_run", "default_out", "train"]
 
@@ -41,10 +44,8 @@ def check_run(config: TrainConfig, out: str | os.PathLike[str], backend: Backend
 
     Raises:
         ValueError: an unknown env id, or settings the backend cannot run.
-        OSError: ``out`` may not be written (see :func:`heartpole.training.check_output_folder`).
+        OSError: ``out`` may not be written (see [`check_output_folder`][heartpole.training.check_output_folder]).
     """
-    from heartpole.policies import env_dynamics
-
     env_dynamics(config.env_id)
     if backend == "jax":
         from heartpole.jax.ppo import PPOSettings
@@ -72,17 +73,17 @@ def train(
     """Train ``config`` (``config.seed``, or each of ``seeds``) into ``out`` and return the summary.
 
     The files are written into a staging folder beside ``out`` and moved into place when every seed is
-    done (see :func:`heartpole.training.staged_output`); ``force`` replaces an earlier run there.
+    done (see [`staged_output`][heartpole.training.staged_output]); ``force`` replaces an earlier run there.
 
     Args:
         config: what to train.
         out: the output folder.
         seeds: train each of these into ``out/seed_<s>/`` and aggregate them; ``None``: one run of
             ``config.seed`` into ``out`` itself.
-        backend: ``"sb3"`` or ``"jax"`` (see :data:`Backend`).
+        backend: ``"sb3"`` or ``"jax"`` (see [`Backend`][heartpole.training.Backend]).
         ray: run the seeds as Ray Tune trials (sb3 backend, ``seeds`` given), on the cluster at ``address``
             (``None``: Ray on this machine) with ``cpus_per_trial`` CPUs each; see
-            :func:`heartpole.scale.train_seeds_ray`.
+            [`train_seeds_ray`][heartpole.scale.train_seeds_ray].
         eval_episodes: episodes of the evaluation of each saved model.
         eval_seed: the seed of that evaluation.
         progress: show a progress bar.
@@ -102,7 +103,7 @@ def train(
     torch.set_num_threads(1)
     with staged_output(out, force) as staging:
         if backend == "jax":
-            from heartpole.jax.ppo import train_seeds as train_jax
+            from heartpole.jax.export import train_seeds as train_jax
 
             return train_jax(config, seeds, staging, eval_episodes=eval_episodes, eval_seed=eval_seed,
                              progress=progress, final_folder=out, on_compiled=on_compiled,

@@ -1,54 +1,33 @@
-"""Beyond one machine: the seeds of ``heartpole train`` and hyperparameter searches as Ray Tune trials.
-
-This module needs the optional ``ray`` extra (``pip install 'heartpole[ray]'``: Ray Tune, Optuna and the
-``train`` extra); it is the only module that imports Ray, and ``import heartpole`` never imports it.
-
-* :func:`train_seeds_ray` runs one Ray Tune trial per seed. Each trial calls
-  :func:`heartpole.training.train_run`, exactly as ``heartpole train --seeds`` does one after another, and
-  writes the same files to ``<folder>/seed_<s>/``; the summary is :func:`heartpole.training.seeds_summary`'s
-  (interquartile mean across seeds with a bootstrap interval). Same seed, same settings, same results.
-* :func:`tune_search` searches hyperparameters with Optuna (Ray Tune's ``OptunaSearch``) over
-  :func:`default_space`; each trial trains ``seeds_per_trial`` seeds with
-  :func:`heartpole.training.train_seeds` and evaluates them with the standard protocol; the objective is
-  the interquartile mean over those seeds of the expected-risk return (the score is reported beside it).
-  The search keeps Ray Tune's experiment state in its output folder, so an interrupted search resumes.
-
-Ray runs locally when no address is given (``ray.init()`` on this machine's cores) and joins a cluster
-with ``address`` (``"auto"`` or ``"ray://host:10001"``). Ray's start-up messages, dashboard, Tune's tables
-and loggers are all switched off; progress is one bar (trials done / total and the best figure so far).
-A trial that raises is reported as one :class:`TrialFailure` line and the others go on.
-"""
+"""Hyperparameter searches: Optuna on Ray Tune over [`default_space`][heartpole.scale.search.default_space],
+each trial a few seeds of [`heartpole.training.train_seeds`][heartpole.training.train_seeds]; resumable from
+its output folder."""
 
 from __future__ import annotations
 
 import csv
 import importlib.util
 import json
-import logging
-import math
 import os
 import re
-import tempfile
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, nullcontext
+from collections.abc import Mapping, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+from ray import tune
 
 from heartpole import files, training
-from heartpole.progress import Progress
-
-RAY_EXTRA = "pip install 'heartpole[ray]'"
-"""How to install what this module needs (Ray Tune, Optuna, Stable-Baselines3)."""
-
-try:
-    import ray
-    from ray import tune
-except ImportError as error:  # pragma: no cover - the CLI checks for the modules first
-    raise ImportError(f"heartpole.scale needs Ray Tune: {RAY_EXTRA}") from error
-
-if TYPE_CHECKING:
-    from ray.tune.experiment import Trial
+from heartpole.scale.trials import (
+    AllTrialsFailedError,
+    SearchInterruptedError,
+    TrialFailure,
+    TrialsBar,
+    failure,
+    fit,
+    ray_session,
+    run_config,
+)
 
 OBJECTIVE = "objective"
 SEARCH_NAME = "search"
@@ -61,275 +40,6 @@ SEARCHABLE = ("ppo", "a2c")
 TIMINGS = ("wall_seconds", "cpu_seconds")
 """A trial's timings, summed over its seeds: the wall time of its runs and their CPU time."""
 """Algorithms with a default search space (DQN has neither ``n_steps`` nor ``ent_coef``)."""
-
-
-@dataclass(frozen=True)
-class TrialFailure:
-    """A trial that raised: what it was (``"seed 3"``, ``"trial 7"``) and the exception's last line."""
-
-    label: str
-    error: str
-
-    def line(self) -> str:
-        """One line for the summary."""
-        return f"{self.label} failed: {self.error}"
-
-    def to_dict(self) -> dict[str, str]:
-        """JSON-safe."""
-        return {"trial": self.label, "error": self.error}
-
-
-class AllTrialsFailedError(RuntimeError):
-    """Every trial failed, so there is nothing to aggregate; :attr:`failures` says why."""
-
-    def __init__(self, failures: Sequence[TrialFailure]) -> None:
-        super().__init__("; ".join(f.line() for f in failures))
-        self.failures = list(failures)
-
-
-class SearchInterruptedError(KeyboardInterrupt):
-    """The search stopped (Ctrl-C) before all its trials finished; its state is saved for ``resume``."""
-
-
-# ------------------------------------------------------------------------------------------------------
-# Ray, quietly
-
-
-@contextmanager
-def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iterator[None]:
-    """Start local Ray (``address=None``, on ``num_cpus`` CPUs or all) or join a cluster, without noise.
-
-    No dashboard, Ray's loggers at ERROR, and the workers' output not forwarded (a trial's error reaches
-    the summary through Tune instead). Shuts Ray down at the end only if this call started it, so an
-    already running session (a notebook's, a test's) is reused as it is.
-    """
-    if ray.is_initialized():
-        yield
-        return
-    with files.signal_handlers_kept():  # not Ray's SIGTERM handler (exit status 1, no cleanup of ours)
-        ray.init(address=address, num_cpus=num_cpus if address is None else None, include_dashboard=False,
-                 logging_level=logging.ERROR, log_to_driver=False)  # fmt: skip
-    try:
-        yield
-    finally:
-        with files.signals_deferred():  # the workers end before anything cleans up after them
-            ray.shutdown()
-
-
-@contextmanager
-def _quiet_tune() -> Iterator[None]:
-    """Tune's legacy reporter at verbosity 0 prints nothing; its controller logs a traceback per failed
-    trial, which :class:`TrialFailure` replaces by one line; no TensorBoard/CSV/JSON logger files."""
-    saved = {k: os.environ.get(k) for k in ("RAY_AIR_NEW_OUTPUT", "TUNE_DISABLE_AUTO_CALLBACK_LOGGERS")}
-    os.environ.update(RAY_AIR_NEW_OUTPUT="0", TUNE_DISABLE_AUTO_CALLBACK_LOGGERS="1")
-    logger = logging.getLogger("ray")
-    level = logger.level
-    logger.setLevel(logging.CRITICAL)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-class _Bar(tune.Callback):
-    """One progress bar for a whole Tune run: trials done / total and the best figure so far.
-
-    ``on_result`` is called in the driver with each finished trial's reported metrics.
-    """
-
-    def __init__(
-        self, total: int, label: str, metric: str, on_result: Callable[[dict[str, Any]], None] | None = None
-    ) -> None:
-        self.total, self.label, self.metric, self.on_result = total, label, metric, on_result
-        self.done, self.failed, self.best = 0, 0, -math.inf
-        self.bar = Progress(total, self._describe())
-
-    def __getstate__(self) -> dict[str, Any]:
-        # Tune pickles its run configuration (callbacks included) into the experiment state; the bar's
-        # stream cannot be pickled and means nothing to a restored run, which gets a new bar.
-        return {"total": self.total, "label": self.label, "metric": self.metric}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(state["total"], state["label"], state["metric"])  # type: ignore[misc]
-
-    def _describe(self) -> str:
-        best = f"{self.best:.3f}" if math.isfinite(self.best) else "-"
-        failed = f", {self.failed} failed" if self.failed else ""
-        return f"{self.label} {self.done}/{self.total}{failed}, best expected-risk return {best}"
-
-    def on_trial_complete(self, iteration: int, trials: list[Trial], trial: Trial, **info: Any) -> None:
-        """A trial finished: pass its result on, redraw."""
-        result = dict(trial.last_result or {})
-        if self.on_result is not None and result:
-            if self.bar.enabled:  # clear the bar's line for whatever on_result prints
-                self.bar.stream.write("\r\x1b[K")
-            self.on_result(result)
-        self._redraw(trials, trial, failed=False)
-
-    def on_trial_error(self, iteration: int, trials: list[Trial], trial: Trial, **info: Any) -> None:
-        """A trial raised: redraw with it counted as failed."""
-        self._redraw(trials, trial, failed=True)
-
-    def _redraw(self, trials: list[Trial], current: Trial, failed: bool) -> None:
-        # Count from all trials, so that a restored search starts from the trials it had finished.
-        others = [t for t in trials if t is not current]
-        self.failed = int(failed) + sum(t.status == "ERROR" for t in others)
-        self.done = 1 + sum(t.status in ("TERMINATED", "ERROR") for t in others)
-        figures = [t.last_result[self.metric] for t in trials if t.last_result and self.metric in t.last_result]
-        self.best = max(figures, default=-math.inf)
-        self.bar.description = self._describe()
-        self.bar.done = self.done - 1
-        self.bar.update(1)
-
-    def close(self) -> None:
-        """End the bar's line."""
-        self.bar.close()
-
-
-def _failure(result: tune.Result, label: str) -> TrialFailure:
-    """The one-line failure of a Tune ``Result`` whose trial raised."""
-    error = result.error
-    cause = getattr(error, "cause", None) or error
-    text = " ".join(f"{type(cause).__name__}: {cause}".split())
-    return TrialFailure(label, text if len(text) <= 300 else text[:297] + "...")
-
-
-def _fit(tuner: tune.Tuner, bar: _Bar) -> list[tune.Result]:
-    """Run ``tuner``; its results in Tune's order (a ``ResultGrid`` is indexed, its stubs declare no iterator)."""
-    with _quiet_tune(), files.signals_as_ctrl_c():  # SIGTERM, SIGHUP: Tune stops its trials as on Ctrl-C
-        try:
-            grid = tuner.fit()
-        finally:
-            bar.close()
-    return [grid[index] for index in range(len(grid))]
-
-
-def _run_config(storage: Path, name: str, bar: _Bar) -> tune.RunConfig:
-    return tune.RunConfig(
-        storage_path=str(storage),
-        name=name,
-        verbose=0,
-        callbacks=[bar],
-        failure_config=tune.FailureConfig(max_failures=0, fail_fast=False),
-    )
-
-
-# ------------------------------------------------------------------------------------------------------
-# seeds
-
-
-def _seed_trial(
-    params: Mapping[str, Any],
-    *,
-    config: training.TrainConfig,
-    folder: str,
-    eval_episodes: int,
-    eval_seed: int,
-    final_folder: str | None,
-    threads: int,
-) -> None:
-    """A Ray Tune trial: :func:`heartpole.training.train_run` for ``params["seed"]``, reported to Tune."""
-    import torch
-
-    torch.set_num_threads(threads)
-    seed = int(params["seed"])
-    run = training.train_run(
-        replace(config, seed=seed),
-        Path(folder) / f"seed_{seed}",
-        eval_episodes=eval_episodes,
-        eval_seed=eval_seed,
-        final_folder=Path(final_folder) / f"seed_{seed}" if final_folder is not None else None,
-    )
-    # Tune flattens nested metrics (intervals, the solved bar): the whole summary travels as JSON beside the
-    # plain numbers the progress bar reads.
-    numbers = {key: value for key, value in run.items() if isinstance(value, (int, float, bool))}
-    tune.report({**numbers, "run": json.dumps(run, allow_nan=False)})
-
-
-def _run_of(metrics: Mapping[str, Any]) -> dict[str, Any]:
-    """A trial's reported metrics back as :func:`heartpole.training.run_summary`'s dict."""
-    run: dict[str, Any] = json.loads(metrics["run"])
-    return run
-
-
-def train_seeds_ray(
-    config: training.TrainConfig,
-    seeds: Sequence[int],
-    folder: str | os.PathLike[str],
-    *,
-    eval_episodes: int = 2000,
-    eval_seed: int = 0,
-    address: str | None = None,
-    num_cpus: int | None = None,
-    cpus_per_trial: int = 1,
-    final_folder: str | os.PathLike[str] | None = None,
-    on_run: Callable[[dict[str, Any]], None] | None = None,
-) -> dict[str, Any]:
-    """:func:`heartpole.training.train_seeds` with each seed a Ray Tune trial; same files, same summary.
-
-    ``folder`` is made absolute (trials run in Ray's own working directories, and on a cluster it must
-    be a path every node shares). Each trial gets ``cpus_per_trial`` CPUs and as many PyTorch threads;
-    with one (the default, and what ``heartpole train`` uses) a seed's results equal the sequential run's.
-    ``summary.json`` lists failed seeds under ``"failed"``, and the aggregate is over the seeds that ran.
-
-    Raises:
-        AllTrialsFailedError: every seed failed (nothing is aggregated or written).
-        KeyboardInterrupt: a signal (Ctrl-C, SIGTERM, SIGHUP) stopped the trials; Tune stops them first.
-    """
-    seeds = [int(s) for s in seeds]
-    if not seeds or len(set(seeds)) != len(seeds):
-        raise ValueError(f"give distinct seeds, got {seeds}")
-    if cpus_per_trial < 1:
-        raise ValueError(f"cpus_per_trial must be >= 1, got {cpus_per_trial}")
-    folder = Path(folder).resolve()
-    folder.mkdir(parents=True, exist_ok=True)
-    trainable = tune.with_resources(
-        tune.with_parameters(
-            _seed_trial,
-            config=config,
-            folder=str(folder),
-            eval_episodes=eval_episodes,
-            eval_seed=eval_seed,
-            final_folder=None if final_folder is None else str(final_folder),
-            threads=cpus_per_trial,
-        ),
-        {"cpu": cpus_per_trial},
-    )
-    bar = _Bar(len(seeds), "seeds", "expected_return", None if on_run is None else lambda m: on_run(_run_of(m)))
-    with tempfile.TemporaryDirectory(prefix="heartpole-tune-") as storage, ray_session(address, num_cpus):
-        tuner = tune.Tuner(
-            trainable,
-            param_space={"seed": tune.grid_search(seeds)},
-            run_config=_run_config(Path(storage), "seeds", bar),
-        )
-        grid = _fit(tuner, bar)
-        runs, failures = {}, []
-        for result in grid:
-            if result.error is None and "expected_return" not in (result.metrics or {}):
-                raise files.interruption()  # Tune stopped the trial before it finished: a signal
-            seed = int((result.config or {})["seed"])
-            if result.error is not None:
-                failures.append(_failure(result, f"seed {seed}"))
-            else:
-                runs[seed] = _run_of(result.metrics or {})
-    if not runs:
-        raise AllTrialsFailedError(failures)
-    summary = training.seeds_summary(
-        config, seeds, [runs[s] for s in seeds if s in runs], eval_episodes=eval_episodes, eval_seed=eval_seed
-    )
-    if failures:
-        summary["failed"] = [f.to_dict() for f in sorted(failures, key=lambda f: seeds.index(int(f.label[5:])))]
-    files.write_json(folder / training.SUMMARY_FILE, summary)
-    return summary
-
-
-# ------------------------------------------------------------------------------------------------------
-# hyperparameter search
 
 
 def default_space(algo: str = "ppo") -> dict[str, Any]:
@@ -526,7 +236,7 @@ def tune_search(
         ),
         {"cpu": cpus_per_trial},
     )
-    bar = _Bar(settings.trials, "trials", OBJECTIVE)
+    bar = TrialsBar(settings.trials, "trials", OBJECTIVE)
     place = nullcontext(folder) if resume else files.folder_in_place(folder, keep=can_resume)
     with place, ray_session(address, num_cpus):
         if resume:
@@ -534,7 +244,7 @@ def tune_search(
             # Tuner.restore takes no run configuration: give the restored one a bar that starts where
             # the interrupted search stopped.
             # (_local_tuner is None only under Ray Client, a "ray://" address.)
-            tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
+            tuner._local_tuner.getrun_config().callbacks = [bar]  # type: ignore[union-attr]
         else:
             files.write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
             searcher = OptunaSearch(
@@ -547,9 +257,9 @@ def tune_search(
                 trainable,
                 param_space=dict(space if space is not None else default_space(base.algo)),
                 tune_config=tune.TuneConfig(search_alg=searcher, num_samples=settings.trials),
-                run_config=_run_config(folder, SEARCH_NAME, bar),
+                run_config=run_config(folder, SEARCH_NAME, bar),
             )
-        grid = _fit(tuner, bar)
+        grid = fit(tuner, bar)
         finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
         if len(finished) < settings.trials:  # Tune stops on a signal after saving its state
             kept = resume or not earlier and can_resume(folder)  # as folder_in_place decides
@@ -578,9 +288,9 @@ def _write_search_results(settings: SearchSettings, grid: Sequence[tune.Result],
         number, trial_id = _trial_tag(result)
         row: dict[str, Any] = {"trial": number, "trial_id": trial_id, **dict(result.config or {})}
         if result.error is not None:
-            failure = _failure(result, f"trial {row['trial']}")
-            failures.append(failure)
-            row["error"] = failure.error
+            failed = failure(result, f"trial {row['trial']}")
+            failures.append(failed)
+            row["error"] = failed.error
         else:
             for key in (OBJECTIVE, "score", "heart_attacks_per_episode", "mean_return", "solved_seeds", *TIMINGS):
                 row[key] = (result.metrics or {}).get(key)

@@ -1,6 +1,6 @@
 """Stable-Baselines3 models saved by ``heartpole train`` (or the JAX trainer) as policies: loading, the
-observation statistics recorded with them, and which algorithm saved them. Model files are pickles: load only
-files you trust."""
+observation statistics recorded with them, and which algorithm saved them. Stable-Baselines3 is imported only
+when a model is loaded, and no training code is needed. Model files are pickles: load only files you trust."""
 
 from __future__ import annotations
 
@@ -22,15 +22,15 @@ from heartpole.dynamics import Dynamics
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
-from heartpole.policies import (
+from heartpole.policies.common import (
     SB3_ALGORITHMS,
     SIDECAR_NAME,
     VECNORMALIZE_NAME,
     Predictor,
-    _observations,
-    _one_line,
-    _v0_dynamics,
+    default_dynamics,
+    observation_batch,
 )
+from heartpole.registry import one_line
 
 
 class RunningStats(Protocol):
@@ -43,8 +43,8 @@ class RunningStats(Protocol):
 
 
 class Normalizer(Protocol):
-    """What :class:`ModelPolicy` reads of SB3's ``VecNormalize``: the statistics and how they are applied
-    (``norm_obs``, when present and false, turns normalisation off)."""
+    """What [`ModelPolicy`][heartpole.policies.saved.ModelPolicy] reads of SB3's ``VecNormalize``: the
+    statistics and how they are applied (``norm_obs``, when present and false, turns normalisation off)."""
 
     @property
     def obs_rms(self) -> RunningStats: ...
@@ -55,7 +55,7 @@ class Normalizer(Protocol):
 
 
 class ModelPolicy:
-    """A Stable-Baselines3 model as a :data:`Policy`: optional observation normalisation, then
+    """A Stable-Baselines3 model as a [`Policy`][heartpole.policies.Policy]: optional observation normalisation, then
     ``model.predict(obs, deterministic=True)``.
 
     Args:
@@ -82,8 +82,8 @@ class ModelPolicy:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         with _one_torch_thread():
             if self._greedy is not None:
-                return self._greedy(self.normalize(_observations(obs)))
-            actions, _ = self.model.predict(self.normalize(_observations(obs)), deterministic=True)
+                return self._greedy(self.normalize(observation_batch(obs)))
+            actions, _ = self.model.predict(self.normalize(observation_batch(obs)), deterministic=True)
         return np.asarray(actions, dtype=np.int64).reshape(-1)
 
 
@@ -161,7 +161,7 @@ def load_model_policy(path: str | Path, dynamics: Dynamics | None = None) -> Mod
         raise FileNotFoundError(f"model file not found: {path}")
     algo = detect_algorithm(path)
     model = _load_model(path, algo)
-    _check_spaces(path, model, dynamics or _v0_dynamics())
+    _check_spaces(path, model, dynamics or default_dynamics())
     normalizer_path = recorded_normalizer(path)
     normalizer = _load_normalizer(normalizer_path) if normalizer_path is not None else None
     policy = ModelPolicy(model, normalizer, name=str(path))
@@ -263,7 +263,7 @@ def _algorithm_from_sidecar(sidecar: Path) -> str:
     try:
         algo = json.loads(sidecar.read_text())["algo"]
     except (OSError, ValueError, KeyError, TypeError) as error:
-        raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({_one_line(error)})') from None
+        raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({one_line(error)})') from None
     if not isinstance(algo, str) or algo.lower() not in SB3_ALGORITHMS:
         raise ValueError(f"{sidecar}: unsupported algo {algo!r}; supported: {', '.join(SB3_ALGORITHMS)}")
     return algo.lower()
@@ -274,7 +274,7 @@ def _zip_data(path: Path) -> dict[str, Any]:
         with zipfile.ZipFile(path) as archive:
             data = json.loads(archive.read("data"))
     except (zipfile.BadZipFile, KeyError, ValueError, OSError) as error:
-        raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({_one_line(error)})") from None
+        raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({one_line(error)})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: not a Stable-Baselines3 model zip (its data is not a JSON object)")
     return data
@@ -292,7 +292,7 @@ def _load_model(path: Path, algo: str) -> BaseAlgorithm:
     try:
         return algorithm.load(path, device="cpu")
     except Exception as error:  # SB3 raises many kinds on a damaged file
-        raise ValueError(f"{path}: cannot load it as a {algo.upper()} model ({_one_line(error)})") from None
+        raise ValueError(f"{path}: cannot load it as a {algo.upper()} model ({one_line(error)})") from None
 
 
 def _check_spaces(path: Path, model: BaseAlgorithm, dynamics: Dynamics) -> None:
@@ -312,5 +312,5 @@ def _load_normalizer(path: Path) -> Normalizer:
             normalizer = pickle.load(handle)
         _normalization(normalizer)
     except Exception as error:  # unpickling can raise anything
-        raise ValueError(f"{path}: not a VecNormalize file saved by VecNormalize.save ({_one_line(error)})") from None
+        raise ValueError(f"{path}: not a VecNormalize file saved by VecNormalize.save ({one_line(error)})") from None
     return normalizer

@@ -1,0 +1,161 @@
+"""Built-in HeartPole policies: plain callables from a batch of observations to a batch of actions.
+
+A policy is anything with the signature of [`Policy`][heartpole.policies.Policy]: it takes observations of shape ``(n,
+obs_dim)`` (float32, in the env's variable order: alertness, hypertension, intoxication, time_since_slept, time_elapsed,
+work_done, then any variant's extras) and returns ``n`` integer action indices. Write your own the same way and pass it
+to [`heartpole.evaluate`][heartpole.evaluation.evaluate]::
+
+    import numpy as np
+    import heartpole
+
+    def nap_when_tired(obs: np.ndarray) -> np.ndarray:
+        return np.where(obs[:, 0] < 0.5, 3, 0)  # 3 is v0's "sleep"
+
+    print(heartpole.evaluate(nap_when_tired, episodes=2000, seed=0).expected_return)
+
+Policies carry no hidden state between calls: whatever they need (the phase of a daily cycle, say) they read from the
+observation, so one policy object serves any number of envs and any episode boundary. Each built-in looks its action
+indices up by name in the env's [`Dynamics`][heartpole.dynamics.Dynamics], so it keeps working in variants whose action
+set is larger than v0's.
+
+Decisions left. A policy may also ask for the number of decisions left in each env's episode, which the observation does
+not show (``time_elapsed`` mixes work and sleep): a policy with a true attribute ``needs_decisions_left`` is called as
+``policy(obs, decisions_left)`` with an integer array ``(n,)``, ``max_steps`` on the first decision and 1 on the last.
+Every loop in this package that runs policies ([`heartpole.evaluate`][heartpole.evaluation.evaluate] and friends,
+``heartpole record``, ``heartpole plot episode``) calls them through [`act_batch`][heartpole.policies.act_batch], which
+passes it; other loops must pass it too (the env counts decisions: ``env.unwrapped.max_steps`` minus the steps taken
+since reset).
+
+Built-ins ([`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES]): ``random``, ``nothing``, ``coffee``,
+``reference``, ``expert`` and ``optimal`` (the solved optimum of [`heartpole.optimum`][heartpole.optimum], which needs
+the decisions left). [`load_policy`][heartpole.policies.load_policy] turns a built-in name or the path of a
+Stable-Baselines3 model saved by ``heartpole train`` (or by the JAX trainer, which saves the same files) into a
+[`Policy`][heartpole.policies.Policy].
+
+The package's modules: ``common`` (the types, the file names of a training run,
+[`act_batch`][heartpole.policies.act_batch]), ``builtins`` (the built-in policies), ``saved`` (models saved by
+``heartpole train``, loaded with Stable-Baselines3, which is imported only when a model is loaded). Everything is
+importable from here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from heartpole.policies.builtins import (
+    BUILTIN_POLICIES,
+    ConstantPolicy,
+    ExpertPolicy,
+    OptimalPolicy,
+    RandomPolicy,
+    ReferencePolicy,
+    available_builtins,
+    coffee_policy,
+    make_policy,
+    nothing_policy,
+)
+from heartpole.policies.common import (
+    CURVE_COLUMNS,
+    CURVE_NAME,
+    MODEL_NAME,
+    SB3_ALGORITHMS,
+    SIDECAR_NAME,
+    VECNORMALIZE_NAME,
+    Actions,
+    DecisionsLeft,
+    Observations,
+    Policy,
+    Predictor,
+    act_batch,
+    default_dynamics,
+    observation_batch,
+    policy_name,
+)
+from heartpole.rates import expert_rate
+from heartpole.registry import env_dynamics, quiet_version_warnings
+
+__all__ = [
+    "Policy",
+    "Observations",
+    "Actions",
+    "DecisionsLeft",
+    "Predictor",
+    "SB3_ALGORITHMS",
+    "MODEL_NAME",
+    "SIDECAR_NAME",
+    "VECNORMALIZE_NAME",
+    "CURVE_NAME",
+    "CURVE_COLUMNS",
+    "observation_batch",
+    "default_dynamics",
+    "policy_name",
+    "act_batch",
+    "RandomPolicy",
+    "ConstantPolicy",
+    "nothing_policy",
+    "coffee_policy",
+    "ReferencePolicy",
+    "ExpertPolicy",
+    "expert_rate",
+    "OptimalPolicy",
+    "BUILTIN_POLICIES",
+    "available_builtins",
+    "make_policy",
+    "load_policy",
+    "env_dynamics",
+    "quiet_version_warnings",
+]
+
+
+def load_policy(
+    spec: str,
+    env_id: str = "HeartPole-v0",
+    *,
+    env_kwargs: Mapping[str, Any] | None = None,
+    rng: np.random.Generator | int | None = None,
+) -> Policy:
+    """A built-in policy by name, or a Stable-Baselines3 model (a ``.zip`` saved by ``heartpole train``).
+
+    For a model, the algorithm is read from a ``heartpole.json`` beside the zip (``{"algo": "ppo"}``) or
+    else from the policy class recorded in the zip. Observations are normalised only with the
+    ``VecNormalize`` statistics that ``heartpole.json`` records as saved with this model (see
+    [`recorded_normalizer`][heartpole.policies.saved.recorded_normalizer]); the returned policy's
+    ``normalizer_path`` names them. The model then acts deterministically. Model files are pickles: load
+    only files you trust.
+
+    Args:
+        spec: a name in [`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES] or a path to a model ``.zip``.
+        env_id: the env the policy will act in (its action names and spaces).
+        env_kwargs: keyword arguments of that env (a variant's parameters).
+        rng: generator or seed of the ``random`` policy.
+
+    Raises:
+        ValueError: unknown name, or a file that is not a usable model for this env.
+        FileNotFoundError: a path that does not exist.
+
+    A policy maps a batch of observations to a batch of action indices:
+
+    >>> import numpy as np
+    >>> policy = load_policy("coffee")
+    >>> policy(np.zeros((3, 6), dtype=np.float32))
+    array([1, 1, 1])
+    """
+    dynamics = env_dynamics(env_id, env_kwargs)
+    if spec in BUILTIN_POLICIES:
+        return make_policy(spec, dynamics, rng)
+    if not _looks_like_path(spec):
+        raise ValueError(
+            f"unknown policy {spec!r}; built-in policies are {', '.join(BUILTIN_POLICIES)}, "
+            "or give the path of a model .zip saved by 'heartpole train'"
+        )
+    from heartpole.policies.saved import load_model_policy  # imports Stable-Baselines3 when it loads
+
+    return load_model_policy(spec, dynamics)
+
+
+def _looks_like_path(spec: str) -> bool:
+    return bool(spec) and (spec.endswith(".zip") or "/" in spec or "\\" in spec or Path(spec).exists())

@@ -1,0 +1,77 @@
+"""What every policy shares: the types, the batch of observations, the default dynamics, a policy's name,
+how loops call a policy, and the names of the files a training run saves."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from heartpole.dynamics import Dynamics
+
+Observations = np.ndarray
+"""A batch of observations, ``(n, obs_dim)`` float32 (one row per env, in observation order)."""
+Actions = np.ndarray
+"""A batch of actions, ``(n,)`` integers in ``0 .. num_actions - 1``."""
+DecisionsLeft = int | np.ndarray | None
+"""The decisions left in each env's episode (a number for all, ``(n,)`` integers, or ``None``: unknown)."""
+Policy = Callable[[Observations], Actions]
+"""A policy: observations ``(n, obs_dim)`` float32 -> integer actions ``(n,)``."""
+
+
+class Predictor(Protocol):
+    """What [`ModelPolicy`][heartpole.policies.saved.ModelPolicy] needs of a model: Stable-Baselines3's
+    ``predict``."""
+
+    def predict(self, observation: np.ndarray, /, *, deterministic: bool = ...) -> tuple[np.ndarray, object]:
+        """The actions for ``observation`` and the next recurrent state (``None`` without one)."""
+        ...
+
+
+SB3_ALGORITHMS = ("ppo", "a2c", "dqn")
+"""The Stable-Baselines3 algorithms HeartPole trains and loads."""
+# The files a training run writes in its folder (every training backend writes them; loading and plots read them).
+MODEL_NAME = "model.zip"
+SIDECAR_NAME = "heartpole.json"
+VECNORMALIZE_NAME = "vecnormalize.pkl"
+CURVE_NAME = "learning_curve.csv"
+CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
+"""The columns of a learning curve: after each evaluation, its timestep and the mean return, heart
+attacks and score of the episodes finished since the last one."""
+
+
+def observation_batch(obs: npt.ArrayLike) -> np.ndarray:
+    """``obs`` as an array, checked to be a batch ``(n, obs_dim)``.
+
+    Raises:
+        ValueError: ``obs`` is not two-dimensional.
+    """
+    array = np.asarray(obs)
+    if array.ndim != 2:
+        raise ValueError(f"a policy takes a batch of observations of shape (n, obs_dim), got shape {array.shape}")
+    return array
+
+
+@functools.lru_cache(maxsize=1)
+def default_dynamics() -> Dynamics:
+    """HeartPole-v0's dynamics, which a policy acts in when given none (built once)."""
+    return Dynamics()
+
+
+def policy_name(policy: object) -> str:
+    """A display name: the policy's ``name`` attribute, its ``__name__``, or its class name."""
+    for attribute in ("name", "__name__"):
+        value = getattr(policy, attribute, None)
+        if isinstance(value, str) and value:
+            return value
+    return type(policy).__name__
+
+
+def act_batch(policy: Policy, obs: Observations, decisions_left: DecisionsLeft) -> Actions:
+    """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``."""
+    if getattr(policy, "needs_decisions_left", False):
+        return policy(obs, decisions_left)  # type: ignore[call-arg]
+    return policy(obs)
