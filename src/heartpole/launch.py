@@ -2,11 +2,11 @@
 
 [`train`][heartpole.launch.train] is what ``heartpole train`` calls once its arguments are checked: it stages
 the output folder (nothing is left half written), trains one seed or several on the chosen backend, and returns
-the run's summary (one seed: [`train_run`][heartpole.training.train_run]'s; several:
-[`train_seeds`][heartpole.training.train_seeds]'s). Every backend writes the same files
+the run's summary (one seed: `train_run`'s; several:
+`train_seeds`'s). Every backend writes the same files
 ([`heartpole.records`][heartpole.records]), so ``heartpole evaluate`` and ``heartpole plot`` read them alike.
-This module sits above the backends it picks from ([`heartpole.training`][heartpole.training],
-[`heartpole.jax`][heartpole.jax], [`heartpole.scale`][heartpole.scale]); none of them imports it.
+This module sits above the backends it picks from (`heartpole.training`,
+`heartpole.jax`, `heartpole.scale`); none of them imports it.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def check_run(config: TrainConfig, out: str | os.PathLike[str], backend: Backend
 
     Raises:
         ValueError: an unknown env id, or settings the backend cannot run.
-        OSError: ``out`` may not be written (see [`check_output_folder`][heartpole.training.check_output_folder]).
+        OSError: ``out`` may not be written (see `check_output_folder`).
     """
     env_dynamics(config.env_id)
     if backend == "jax":
@@ -73,7 +73,7 @@ def train(
     """Train ``config`` (``config.seed``, or each of ``seeds``) into ``out`` and return the summary.
 
     The files are written into a staging folder beside ``out`` and moved into place when every seed is
-    done (see [`staged_output`][heartpole.training.staged_output]); ``force`` replaces an earlier run there.
+    done (see `staged_output`); ``force`` replaces an earlier run there.
 
     Args:
         config: what to train.
@@ -83,7 +83,7 @@ def train(
         backend: ``"sb3"`` or ``"jax"`` (see [`Backend`][heartpole.training.Backend]).
         ray: run the seeds as Ray Tune trials (sb3 backend, ``seeds`` given), on the cluster at ``address``
             (``None``: Ray on this machine) with ``cpus_per_trial`` CPUs each; see
-            [`train_seeds_ray`][heartpole.scale.train_seeds_ray].
+            `train_seeds_ray`.
         eval_episodes: episodes of the evaluation of each saved model.
         eval_seed: the seed of that evaluation.
         progress: show a progress bar.

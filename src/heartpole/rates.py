@@ -1,8 +1,8 @@
 """The best long-run score known for a HeartPole env: the rate of the ``expert`` policy's sleep rule.
 
-[`best_known_rate`][heartpole.rates.best_known_rate] is what the solved bar
-([`solved_bar`][heartpole.registry.solved_bar]) and the shaped training reward measure scores against; the
-``expert`` policy ([`ExpertPolicy`][heartpole.policies.ExpertPolicy]) sleeps once the coming half-hour would
+`best_known_rate` is what the solved bar
+(`solved_bar`) and the shaped training reward measure scores against; the
+``expert`` policy (`ExpertPolicy`) sleeps once the coming half-hour would
 earn less than it. It is computed from the dynamics alone, so registering a variant solves nothing else.
 """
 
@@ -18,7 +18,7 @@ from heartpole.model import Params, alertness_decay, productivity
 
 RATE_WITH_NAPS = 0.69
 """The long-run rate of the expert's nap rule in a variant with v1's ``take_nap`` (see
-[`ExpertPolicy`][heartpole.policies.ExpertPolicy])."""
+`ExpertPolicy`)."""
 
 
 def best_known_rate(dynamics: Dynamics) -> float | None:

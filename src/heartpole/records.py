@@ -1,10 +1,10 @@
 """What every training backend shares: the Stable-Baselines3 model it saves, the files of a run, the run's
 evaluation, and its line in a summary with the aggregates across seeds.
 
-Stable-Baselines3 in this process ([`heartpole.training`][heartpole.training]) and PPO compiled in JAX
-([`heartpole.jax.ppo`][heartpole.jax.ppo]) write the same files through these helpers, so that
+Stable-Baselines3 in this process (`heartpole.training`) and PPO compiled in JAX
+(`heartpole.jax.ppo`) write the same files through these helpers, so that
 ``heartpole evaluate``, ``heartpole plot`` and [`load_policy`][heartpole.policies.load_policy] read them
-alike. A run's configuration is a [`TrainConfig`][heartpole.training.TrainConfig] (typed ``Any`` here: this
+alike. A run's configuration is a `TrainConfig` (typed ``Any`` here: this
 module sits below the training backends). Stable-Baselines3 and PyTorch are imported only by the functions
 that need them.
 """
@@ -108,7 +108,7 @@ def versions(**extra: str) -> dict[str, str]:
 
 
 def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
-    """Write the learning curve as CSV with [`CURVE_COLUMNS`][heartpole.policies.CURVE_COLUMNS] (into a run's
+    """Write the learning curve as CSV with `CURVE_COLUMNS` (into a run's
     staging folder, which is moved into place whole)."""
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=CURVE_COLUMNS)
@@ -167,7 +167,7 @@ def evaluate_saved(
 
 
 def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The solved bar of ``env_id`` ([`solved_bar`][heartpole.registry.solved_bar]) as a JSON-safe dict."""
+    """The solved bar of ``env_id`` (`solved_bar`) as a JSON-safe dict."""
     bar = solved_bar(env_dynamics(env_id, env_kwargs))
     return {"heart_attacks_per_episode_at_most": bar.heart_attacks_at_most, "score_at_least": bar.score_at_least}
 

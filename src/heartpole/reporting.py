@@ -1,10 +1,10 @@
 """How HeartPole's results read as text: a value with its interval, the ranked table, the published Table 1,
 and words for what is missing. (Their JSON form, ``null`` for what is missing, is
-[`json_number`][heartpole.stats.json_number]'s.)
+`json_number`'s.)
 
 Fewer than two episodes give no interval, and a variant the optimum does not cover gives no regret; no
 output shows ``nan`` or ``inf`` for them. Text says so in words
-([`missing_notes`][heartpole.reporting.missing_notes]), JSON has ``null``.
+(`missing_notes`), JSON has ``null``.
 """
 
 from __future__ import annotations

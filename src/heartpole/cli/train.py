@@ -1,6 +1,6 @@
 """``heartpole train``: train an agent with Stable-Baselines3 on the native vector env, then evaluate it.
 
-The work is done by [`heartpole.launch.train`][heartpole.launch.train] (on [`heartpole.training`][heartpole.training]
+The work is done by [`heartpole.launch.train`][heartpole.launch.train] (on `heartpole.training`
 or the other backends; imported only when the command runs, so the rest of the command line works without
 the optional ``train`` extra); this module parses, checks and prints.
 """

@@ -1,4 +1,4 @@
-"""``heartpole train --backend jax``: PPO trained in JAX ([`heartpole.jax.ppo`][heartpole.jax.ppo]), saved as
+"""``heartpole train --backend jax``: PPO trained in JAX (`heartpole.jax.ppo`), saved as
 ``heartpole train`` saves Stable-Baselines3's runs, evaluated and summarised.
 
 The trained weights are saved as an SB3 ``model.zip`` plus ``vecnormalize.pkl``, so that
@@ -146,10 +146,10 @@ def train_seeds(
     """Train ``config`` (PPO) for every seed in one compiled, vmapped call, then evaluate each seed.
 
     With ``seeds=None`` one run of ``config.seed`` is written into ``folder`` itself and its summary
-    returned (as [`heartpole.training.train_run`][heartpole.training.train_run]); otherwise each seed goes to
+    returned (as `heartpole.training.train_run`); otherwise each seed goes to
     ``folder/seed_<s>/`` and ``folder/summary.json`` aggregates them (as
-    [`heartpole.training.train_seeds`][heartpole.training.train_seeds]). Training and its timings are
-    [`train_compiled`][heartpole.jax.ppo.train_compiled]'s; ``on_compiled`` is called with the compile time
+    `heartpole.training.train_seeds`). Training and its timings are
+    `train_compiled`'s; ``on_compiled`` is called with the compile time
     before training starts.
     """
     single = seeds is None

@@ -8,8 +8,8 @@ entropy bonus; VecNormalize's running observation and discounted-return statisti
 of :class:`heartpole.training.TrainingReward`; and bootstrapping through the time limit from the value of
 the episode's last observation (``info["final_observation"]``), as SB3 does for ``TimeLimit.truncated``.
 
-[`train_compiled`][heartpole.jax.ppo.train_compiled] trains several seeds in one compiled call;
-[`heartpole.jax.export`][heartpole.jax.export] saves them as ``heartpole train`` saves SB3's runs, evaluates
+`train_compiled` trains several seeds in one compiled call;
+`heartpole.jax.export` saves them as ``heartpole train`` saves SB3's runs, evaluates
 and summarises them.
 """
 
@@ -430,7 +430,7 @@ def learning_curve(ended: Any, settings: PPOSettings) -> list[dict[str, float]]:
 
 
 class Trained(NamedTuple):
-    """What [`train_compiled`][heartpole.jax.ppo.train_compiled] returns: every seed's trained runner and
+    """What `train_compiled` returns: every seed's trained runner and
     learning-curve metrics (stacked along a first axis of seeds), the settings, and the timings."""
 
     runners: Runner
@@ -454,7 +454,7 @@ def train_compiled(
     progress: bool = False,
     on_compiled: Callable[[float], None] | None = None,
 ) -> Trained:
-    """Train ``config`` (a [`TrainConfig`][heartpole.training.TrainConfig] of PPO) for every one of ``seeds``
+    """Train ``config`` (a `TrainConfig` of PPO) for every one of ``seeds``
     in one compiled, vmapped call; nothing is written.
 
     Timings: ``compile_seconds`` (tracing and compiling, or loading from the persistent cache) and

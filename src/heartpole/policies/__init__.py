@@ -123,7 +123,7 @@ def load_policy(
     For a model, the algorithm is read from a ``heartpole.json`` beside the zip (``{"algo": "ppo"}``) or
     else from the policy class recorded in the zip. Observations are normalised only with the
     ``VecNormalize`` statistics that ``heartpole.json`` records as saved with this model (see
-    [`recorded_normalizer`][heartpole.policies.saved.recorded_normalizer]); the returned policy's
+    `recorded_normalizer`); the returned policy's
     ``normalizer_path`` names them. The model then acts deterministically. Model files are pickles: load
     only files you trust.
 

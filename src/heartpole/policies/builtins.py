@@ -127,7 +127,7 @@ class ExpertPolicy:
     coming half-hour's productivity falls too, and the classic renewal argument applies: keep working while the coming
     half-hour earns at least the long-run rate (work per half-hour, sleep included); sleep once it would earn less.
     Sleep pays for its 16 half-hours because a fresh day then earns above the rate. The rate is the score the policy
-    itself reaches, a fixed point that [`expert_rate`][heartpole.rates.expert_rate] solves from the dynamics: 0.327 for
+    itself reaches, a fixed point that `expert_rate` solves from the dynamics: 0.327 for
     v0, reached when alertness falls to about 0.38 (about 16 decisions after waking, ~63 sleeps an episode).
 
     Naps (HeartPole-v1). A nap costs only time: one half-hour without work for +U(0.3, 0.6) alertness, no
@@ -147,7 +147,7 @@ class ExpertPolicy:
     Args:
         dynamics: the env's dynamics (default: v0's); needs ``do_nothing`` and ``sleep``.
         rate: the productivity below which it sleeps (default:
-            [`best_known_rate`][heartpole.rates.best_known_rate] of ``dynamics``).
+            `best_known_rate` of ``dynamics``).
     """
 
     name = "expert"

@@ -23,7 +23,7 @@ Policy = Callable[[Observations], Actions]
 
 
 class Predictor(Protocol):
-    """What [`ModelPolicy`][heartpole.policies.saved.ModelPolicy] needs of a model: Stable-Baselines3's
+    """What `ModelPolicy` needs of a model: Stable-Baselines3's
     ``predict``."""
 
     def predict(self, observation: np.ndarray, /, *, deterministic: bool = ...) -> tuple[np.ndarray, object]:

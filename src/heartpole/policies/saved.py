@@ -43,7 +43,7 @@ class RunningStats(Protocol):
 
 
 class Normalizer(Protocol):
-    """What [`ModelPolicy`][heartpole.policies.saved.ModelPolicy] reads of SB3's ``VecNormalize``: the
+    """What `ModelPolicy` reads of SB3's ``VecNormalize``: the
     statistics and how they are applied (``norm_obs``, when present and false, turns normalisation off)."""
 
     @property

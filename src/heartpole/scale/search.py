@@ -1,5 +1,5 @@
-"""Hyperparameter searches: Optuna on Ray Tune over [`default_space`][heartpole.scale.search.default_space],
-each trial a few seeds of [`heartpole.training.train_seeds`][heartpole.training.train_seeds]; resumable from
+"""Hyperparameter searches: Optuna on Ray Tune over `default_space`,
+each trial a few seeds of `heartpole.training.train_seeds`; resumable from
 its output folder."""
 
 from __future__ import annotations

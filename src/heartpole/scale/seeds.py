@@ -27,7 +27,7 @@ def _seed_trial(
     final_folder: str | None,
     threads: int,
 ) -> None:
-    """A Ray Tune trial: [`train_run`][heartpole.training.train_run] for ``params["seed"]``, reported to Tune."""
+    """A Ray Tune trial: `train_run` for ``params["seed"]``, reported to Tune."""
     import torch
 
     torch.set_num_threads(threads)
@@ -64,7 +64,7 @@ def train_seeds_ray(
     final_folder: str | os.PathLike[str] | None = None,
     on_run: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
-    """[`heartpole.training.train_seeds`][heartpole.training.train_seeds] with each seed a Ray Tune trial;
+    """`heartpole.training.train_seeds` with each seed a Ray Tune trial;
     same files, same summary.
 
     ``folder`` is made absolute (trials run in Ray's own working directories, and on a cluster it must

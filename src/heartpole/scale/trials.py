@@ -1,6 +1,6 @@
 """Ray Tune, quietly: the Ray session, one progress bar for a whole run of trials, and failed trials as one
-line each. The seeds ([`heartpole.scale.seeds`][heartpole.scale.seeds]) and the search
-([`heartpole.scale.search`][heartpole.scale.search]) run their trials through these."""
+line each. The seeds (`heartpole.scale.seeds`) and the search
+(`heartpole.scale.search`) run their trials through these."""
 
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
 @contextmanager
 def quiet_tune() -> Iterator[None]:
     """Tune, quiet: its legacy reporter at verbosity 0 prints nothing; its controller logs a traceback per
-    failed trial, which [`TrialFailure`][heartpole.scale.TrialFailure] replaces by one line; no
+    failed trial, which `TrialFailure` replaces by one line; no
     TensorBoard/CSV/JSON logger files."""
     saved = {k: os.environ.get(k) for k in ("RAY_AIR_NEW_OUTPUT", "TUNE_DISABLE_AUTO_CALLBACK_LOGGERS")}
     os.environ.update(RAY_AIR_NEW_OUTPUT="0", TUNE_DISABLE_AUTO_CALLBACK_LOGGERS="1")
