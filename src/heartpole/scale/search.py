@@ -244,7 +244,7 @@ def tune_search(
             # Tuner.restore takes no run configuration: give the restored one a bar that starts where
             # the interrupted search stopped.
             # (_local_tuner is None only under Ray Client, a "ray://" address.)
-            tuner._local_tuner.getrun_config().callbacks = [bar]  # type: ignore[union-attr]
+            tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
         else:
             files.write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
             searcher = OptunaSearch(
