@@ -22,12 +22,12 @@ from heartpole.policies import (
     RandomPolicy,
     ReferencePolicy,
     act_batch,
-    env_dynamics,
-    expert_rate,
     load_policy,
     make_policy,
 )
 from heartpole.policies.saved import ModelPolicy, detect_algorithm
+from heartpole.rates import best_known_rate, expert_rate
+from heartpole.registry import env_dynamics
 
 OBS = np.array(
     [
@@ -125,6 +125,17 @@ def test_expert_rate_is_a_fixed_point_that_follows_the_dynamics() -> None:
     shorter, longer = expert_rate(Params(sleep_half_hours=8)), expert_rate(Params(sleep_half_hours=32))
     assert shorter > rate > longer  # cheaper sleep, higher long-run rate
     assert ExpertPolicy(rate=0.5).rate == 0.5
+
+
+def test_the_best_known_rate_is_the_experts_and_none_without_its_actions() -> None:
+    """The solved bar's rate (heartpole.rates, below the registry) and the expert's are one rule."""
+    v0, v1 = env_dynamics("HeartPole-v0"), env_dynamics("HeartPole-v1")
+    assert best_known_rate(v0) == ExpertPolicy(v0).rate == expert_rate(v0.params)
+    assert best_known_rate(v1) == ExpertPolicy(v1).rate == ExpertPolicy.RATE_WITH_NAPS
+    no_sleep = Dynamics(actions=tuple(a for a in V0_ACTIONS if a.name != "sleep"))
+    assert best_known_rate(no_sleep) is None
+    with pytest.raises(ValueError):
+        ExpertPolicy(no_sleep)
 
 
 # ------------------------------------------------------------------------------------------------------
