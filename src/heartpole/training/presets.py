@@ -16,14 +16,14 @@ from heartpole.model import check_integer
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
+from heartpole.solved import V0_HEART_ATTACKS_AT_MOST, V0_SCORE_AT_LEAST
+from heartpole.solved import meets_bar as meets
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
-SOLVED_HEART_ATTACKS = 1.30
-"""Issue 3's bar for HeartPole-v0: at most this many heart attacks per episode over 2,000 evaluation
-episodes ..."""
-SOLVED_SCORE = 0.30
-"""... and at least this final productivity score. Other envs have their own bar,
-:func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+SOLVED_HEART_ATTACKS = V0_HEART_ATTACKS_AT_MOST
+"""HeartPole-v0's heart-attack bar ([`heartpole.solved`][heartpole.solved] defines it)."""
+SOLVED_SCORE = V0_SCORE_AT_LEAST
+"""HeartPole-v0's score bar ([`heartpole.solved`][heartpole.solved] defines it)."""
 ScoreRate: TypeAlias = Literal["best", "auto"] | float
 """How a preset sets the shaped reward's rate: ``"best"`` (:data:`RATE_SHARE_OF_BEST` of the env's best known
 score), ``"auto"`` (estimated while training) or the rate itself. See :func:`preset_config`."""
@@ -265,8 +265,10 @@ def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> 
 
 def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
     """Whether an evaluation's heart attacks and score meet ``bar`` (from :func:`env_solved_bar`)."""
-    score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
-    return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
+    return meets(
+        evaluation["heart_attacks_per_episode"], evaluation["score"],
+        bar["heart_attacks_per_episode_at_most"], bar["score_at_least"],
+    )  # fmt: skip
 
 
 PRESET_FORMAT = "heartpole-preset/1"

@@ -194,10 +194,10 @@ def run_summary(
     """One run's line in a summary: seed, evaluation figures, whether it is solved, timings (``cpu``: the
     CPU time of the process that trained and evaluated it, all its threads, where measured).
 
-    Solved means a regret whose 95% upper bound is at most :data:`heartpole.evaluation.SOLVED_REGRET` where
+    Solved means a regret whose 95% upper bound is at most [`SOLVED_REGRET`][heartpole.solved.SOLVED_REGRET] where
     the optimum is known (:mod:`heartpole.optimum`), and the env's heart-attack and score bar elsewhere.
     """
-    from heartpole.evaluation import SOLVED_REGRET
+    from heartpole.solved import SOLVED_REGRET
 
     bar = env_solved_bar(config.env_id, config.env_kwargs)
     by_regret = evaluation.get("solved")
