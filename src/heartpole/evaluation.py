@@ -74,6 +74,18 @@ Progress = Callable[[int], None]
 # ------------------------------------------------------------------------------------------------------
 # results
 
+SUMMARIES = (
+    ("mean_return", "ci95", "returns"),
+    ("expected_return", "expected_ci95", "expected_returns"),
+    ("heart_attacks_per_episode", "heart_attacks_ci95", "heart_attacks"),
+    ("expected_heart_attacks_per_episode", None, "expected_heart_attacks"),
+    ("score", "score_ci95", "scores"),
+    ("drinks_per_episode", None, "drinks"),
+    ("sleeps_per_episode", None, "sleeps"),
+)
+"""How [`EvaluationResult`][heartpole.evaluation.EvaluationResult] summarises per-episode values: (its mean's
+field, its 95% interval's field or ``None``, the per-episode field)."""
+
 
 @dataclass(frozen=True)
 class EvaluationResult:
@@ -135,28 +147,14 @@ class EvaluationResult:
     @classmethod
     def from_episodes(cls, episodes: _Episodes, **about: Any) -> EvaluationResult:
         """Summarise per-episode values; ``about`` holds policy, env_id, seed, num_envs, max_steps, seconds."""
-        return cls(
-            episodes=len(episodes.returns),
-            mean_return=float(episodes.returns.mean()),
-            ci95=confidence_interval(episodes.returns),
-            expected_return=float(episodes.expected_returns.mean()),
-            expected_ci95=confidence_interval(episodes.expected_returns),
-            heart_attacks_per_episode=float(episodes.heart_attacks.mean()),
-            heart_attacks_ci95=confidence_interval(episodes.heart_attacks),
-            expected_heart_attacks_per_episode=float(episodes.expected_heart_attacks.mean()),
-            score=float(episodes.scores.mean()),
-            score_ci95=confidence_interval(episodes.scores),
-            drinks_per_episode=float(episodes.drinks.mean()),
-            sleeps_per_episode=float(episodes.sleeps.mean()),
-            returns=episodes.returns,
-            expected_returns=episodes.expected_returns,
-            scores=episodes.scores,
-            heart_attacks=episodes.heart_attacks,
-            expected_heart_attacks=episodes.expected_heart_attacks,
-            drinks=episodes.drinks,
-            sleeps=episodes.sleeps,
-            **about,
-        )
+        summary: dict[str, Any] = {}
+        for mean, interval, values in SUMMARIES:
+            array = getattr(episodes, values)
+            summary[mean] = float(array.mean())
+            if interval is not None:
+                summary[interval] = confidence_interval(array)
+        arrays = {name: getattr(episodes, name) for name in _Episodes.__dataclass_fields__}
+        return cls(episodes=len(episodes.returns), **summary, **arrays, **about)
 
     @property
     def width_ratio(self) -> float:

@@ -365,8 +365,7 @@ def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> Non
         for source in (temporary / namespace).glob("*.json"):
             destination = root / namespace / source.name
             if not destination.exists():
-                destination.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(source, destination)
+                files.atomic_write(destination, lambda temporary, source=source: shutil.copyfile(source, temporary))
 
 
 @contextlib.contextmanager
