@@ -29,9 +29,9 @@ import numpy as np
 
 from heartpole import training
 from heartpole.evaluation import evaluate
-from heartpole.solved import SOLVED_REGRET
 from heartpole.jax.env import HeartPoleJax
 from heartpole.jax.ppo import PPOSettings, Runner, make_parts
+from heartpole.solved import SOLVED_REGRET
 
 
 def greedy_policy(runner: Runner) -> Any:
