@@ -28,6 +28,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
@@ -365,7 +366,7 @@ def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> Non
         for source in (temporary / namespace).glob("*.json"):
             destination = root / namespace / source.name
             if not destination.exists():
-                files.atomic_write(destination, lambda temporary, source=source: shutil.copyfile(source, temporary))
+                files.atomic_write(destination, partial(shutil.copyfile, source))
 
 
 @contextlib.contextmanager
