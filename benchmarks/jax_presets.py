@@ -28,9 +28,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from heartpole import training
-from heartpole.evaluation import SOLVED_REGRET, evaluate
+from heartpole.evaluation import evaluate
 from heartpole.jax.env import HeartPoleJax
 from heartpole.jax.ppo import PPOSettings, Runner, make_parts
+from heartpole.solved import SOLVED_REGRET
 
 
 def greedy_policy(runner: Runner) -> Any:

@@ -60,3 +60,13 @@ def test_bad_input(kwargs, message):
 def test_invalid_actions_are_named():
     with pytest.raises(ValueError, match="returned actions"):
         true_value(lambda obs: np.full(len(obs), 9), 0.9, 4)
+
+
+def test_the_optimal_policy_is_told_the_decisions_left_and_meets_evaluates_episodes():
+    """``true_value`` and ``evaluate`` run the same loop: with one chunk and the same seed they meet the same
+    episodes, so a policy that needs the decisions left (``optimal``) gets the same returns in both."""
+    kwargs = {"max_steps": 800}
+    truth = true_value("optimal", 1.0, 40, seed=5, env_kwargs=kwargs)
+    result = evaluate("optimal", episodes=40, seed=5, num_envs=40, env_kwargs=kwargs, regret=False)
+    assert truth.mean_return == pytest.approx(result.mean_return, abs=1e-9)
+    assert truth.expected_return == pytest.approx(result.expected_return, abs=1e-5)  # float32 rewards summed

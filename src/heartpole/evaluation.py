@@ -30,21 +30,22 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, TypedDict, cast
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
-from heartpole.dynamics import Dynamics
 from heartpole.model import check_integer
-from heartpole.policies import Policy, act_batch, available_builtins, load_policy, policy_name
-from heartpole.registry import quiet_version_warnings
+from heartpole.policies import Policy, available_builtins, load_policy, policy_name
+from heartpole.rewards import expected_risk
+from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
+from heartpole.solved import SOLVED_REGRET as SOLVED_REGRET
+from heartpole.solved import regret_solved
 from heartpole.stats import confidence_interval, json_interval, json_number
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
 
     from heartpole.optimum import OptimumSolution
-    from heartpole.vector import HeartPoleVectorEnv
 
 DEFAULT_EPISODES = 2000
 DEFAULT_NUM_ENVS = 10_000
@@ -55,22 +56,24 @@ of 2,000, and ~3x faster than of 1,000)."""
 ENV_STREAM, POLICY_STREAM = 0, 1
 """The seed's spawn keys of the envs' episodes and of random policies, kept apart."""
 
-SOLVED_REGRET = 0.01
-"""The proposed "solved" bar as a regret: the upper end of the 95% regret interval over 2,000 evaluation
-episodes at most 0.01 of expected return. Why 0.01: one drink an episode already costs at least 0.018 (the
-drink floor of :mod:`heartpole.optimum`), so the bar rules out habitual drinking; a score 0.01 below the
-optimum's 0.327 (3%) is the most sleep timing may lose. ``expert`` (0.00075) and the trained PPO agents of
-the README (0.002-0.006) meet it; a policy that sleeps every half-hour (0.28) or a PPO agent trained on the
-telescoping score (0.059) do not. For a policy that never drinks the 2,000-episode interval is about
-+-0.0004, 25 times narrower than the bar, so the verdict does not hinge on the evaluation's luck. The
-previous bar (heart attacks <= 1.30 and score >= 0.30) let through a regret of up to about 6.5."""
-
 PolicyLike = Policy | str
 Progress = Callable[[int], None]
 
 
 # ------------------------------------------------------------------------------------------------------
 # results
+
+SUMMARIES = (
+    ("mean_return", "ci95", "returns"),
+    ("expected_return", "expected_ci95", "expected_returns"),
+    ("heart_attacks_per_episode", "heart_attacks_ci95", "heart_attacks"),
+    ("expected_heart_attacks_per_episode", None, "expected_heart_attacks"),
+    ("score", "score_ci95", "scores"),
+    ("drinks_per_episode", None, "drinks"),
+    ("sleeps_per_episode", None, "sleeps"),
+)
+"""How [`EvaluationResult`][heartpole.evaluation.EvaluationResult] summarises per-episode values: (its mean's
+field, its 95% interval's field or ``None``, the per-episode field)."""
 
 
 @dataclass(frozen=True)
@@ -126,36 +129,21 @@ class EvaluationResult:
 
     @property
     def solved(self) -> bool | None:
-        """Whether the regret's 95% upper bound is at most :data:`SOLVED_REGRET`; ``None`` without an optimum."""
-        if not math.isfinite(self.regret_ci95[1]):
-            return None
-        return bool(self.regret_ci95[1] <= SOLVED_REGRET)
+        """Whether the regret's 95% upper bound is at most [`SOLVED_REGRET`][heartpole.solved.SOLVED_REGRET];
+        ``None`` without an optimum."""
+        return regret_solved(self.regret_ci95[1])
 
     @classmethod
     def from_episodes(cls, episodes: _Episodes, **about: Any) -> EvaluationResult:
         """Summarise per-episode values; ``about`` holds policy, env_id, seed, num_envs, max_steps, seconds."""
-        return cls(
-            episodes=len(episodes.returns),
-            mean_return=float(episodes.returns.mean()),
-            ci95=confidence_interval(episodes.returns),
-            expected_return=float(episodes.expected_returns.mean()),
-            expected_ci95=confidence_interval(episodes.expected_returns),
-            heart_attacks_per_episode=float(episodes.heart_attacks.mean()),
-            heart_attacks_ci95=confidence_interval(episodes.heart_attacks),
-            expected_heart_attacks_per_episode=float(episodes.expected_heart_attacks.mean()),
-            score=float(episodes.scores.mean()),
-            score_ci95=confidence_interval(episodes.scores),
-            drinks_per_episode=float(episodes.drinks.mean()),
-            sleeps_per_episode=float(episodes.sleeps.mean()),
-            returns=episodes.returns,
-            expected_returns=episodes.expected_returns,
-            scores=episodes.scores,
-            heart_attacks=episodes.heart_attacks,
-            expected_heart_attacks=episodes.expected_heart_attacks,
-            drinks=episodes.drinks,
-            sleeps=episodes.sleeps,
-            **about,
-        )
+        summary: dict[str, Any] = {}
+        for mean, interval, values in SUMMARIES:
+            array = getattr(episodes, values)
+            summary[mean] = float(array.mean())
+            if interval is not None:
+                summary[interval] = confidence_interval(array)
+        arrays = {name: getattr(episodes, name) for name in _Episodes.__dataclass_fields__}
+        return cls(episodes=len(episodes.returns), **summary, **arrays, **about)
 
     @property
     def width_ratio(self) -> float:
@@ -328,9 +316,9 @@ def evaluate(
     parts = []
     with _progress_callback(progress, f"evaluating {name}", episodes, env_id, env_kwargs) as tick:
         for index, first in enumerate(range(0, episodes, chunk)):
-            with _vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
+            with vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
                 parts.append(_run_episodes(env, act, name, chunk_seed(seed, index), tick))
-                max_steps = int(cast("HeartPoleVectorEnv", env.unwrapped).max_steps)
+                max_steps = int(base_env(env).max_steps)
     result = EvaluationResult.from_episodes(
         _Episodes.concatenate(parts),
         policy=name,
@@ -415,69 +403,28 @@ def rank(results: Iterable[EvaluationResult]) -> list[EvaluationResult]:
 
 def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick: Progress) -> _Episodes:
     """Run every env of the vector env ``env`` for one full episode (``max_steps`` steps after reset)."""
-    base = cast("HeartPoleVectorEnv", env.unwrapped)
-    size, max_steps, dynamics = base.num_envs, int(base.max_steps), base.dynamics
+    size, dynamics = env.num_envs, base_env(env).dynamics
     drinks_table = np.array([action.is_drink for action in dynamics.actions])
     sleeps_table = np.array([action.sleeps for action in dynamics.actions])
     returns, risks = np.zeros(size), np.zeros(size)
     attacks, drinks, sleeps = (np.zeros(size, dtype=np.int64) for _ in range(3))
-    obs, _ = env.reset(seed=reset_seed)
-    for step in range(max_steps):
-        left = np.full(size, max_steps - step, dtype=np.int64)  # every env of the chunk is at the same step
-        actions = _actions(act, obs, size, len(dynamics.actions), name, left)
-        drinks += drinks_table[actions]
-        sleeps += sleeps_table[actions]
-        obs, reward, _, truncated, info = env.step(actions)
-        returns += reward
-        risks += info["heart_attack_risk"]  # float32 probabilities summed in float64
-        attacks += info["heart_attack"]
+    for step in episode_steps(env, reset_seed, policy_actions(act, name, env)):
+        drinks += drinks_table[step.actions]
+        sleeps += sleeps_table[step.actions]
+        returns += step.rewards
+        risks += step.info["heart_attack_risk"]  # float32 probabilities summed in float64
+        attacks += step.info["heart_attack"]
         tick(size)
-    if not np.all(truncated):
-        raise RuntimeError(f"episodes did not end after max_steps={max_steps} steps")
-    scores = np.asarray(info["score"], dtype=np.float64)
-    expected = scores - dynamics.params.heart_attack_penalty * risks
+    scores = np.asarray(step.info["score"], dtype=np.float64)
     return _Episodes(
         returns=returns,
-        expected_returns=expected,
+        expected_returns=expected_risk(scores, risks, dynamics.params.heart_attack_penalty),
         scores=scores,
         heart_attacks=attacks,
         expected_heart_attacks=risks,
         drinks=drinks,
         sleeps=sleeps,
     )
-
-
-@contextmanager
-def _vector_env(env_id: str, env_kwargs: dict[str, Any], size: int) -> Iterator[VectorEnv]:
-    """The native vector env of ``env_id`` with ``size`` envs, closed afterwards."""
-    import gymnasium as gym
-
-    try:
-        with quiet_version_warnings():
-            env = gym.make_vec(env_id, num_envs=size, vectorization_mode="vector_entry_point", **env_kwargs)
-    except gym.error.Error as error:
-        raise ValueError(f"cannot make a vector env for {env_id!r}: {' '.join(str(error).split())}") from None
-    try:
-        if not isinstance(getattr(env.unwrapped, "dynamics", None), Dynamics):
-            raise ValueError(f"{env_id!r} is not a HeartPole env")
-        yield env
-    finally:
-        env.close()
-
-
-def _actions(
-    act: Policy, obs: np.ndarray, size: int, num_actions: int, name: str, decisions_left: np.ndarray
-) -> np.ndarray:
-    """The policy's actions for ``obs``, checked: ``size`` integers in ``0..num_actions - 1``."""
-    actions = np.asarray(act_batch(act, obs, decisions_left))
-    expected = f"expected {size} integer actions in 0..{num_actions - 1}"
-    if actions.shape != (size,):
-        raise ValueError(f"policy {name!r} returned shape {actions.shape} for {size} observations; {expected}")
-    if actions.dtype.kind not in "iu":
-        raise ValueError(f"policy {name!r} returned {actions.dtype} actions; {expected}")
-    if actions.min() < 0 or actions.max() >= num_actions:
-        raise ValueError(f"policy {name!r} returned actions {actions.min()}..{actions.max()}; {expected}")
-    return actions.astype(np.intp, copy=False)
 
 
 def _resolve(policy: PolicyLike, env_id: str, env_kwargs: dict[str, Any], seed: int) -> tuple[Policy, str]:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 import numpy as np
 
-from heartpole import files
+from heartpole import files, solved
 from heartpole.policies import CURVE_COLUMNS, MODEL_NAME, SIDECAR_NAME, load_policy
 from heartpole.registry import env_dynamics, solved_bar
 from heartpole.stats import bootstrap_interval, interquartile_mean
@@ -175,8 +175,10 @@ def env_solved_bar(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> 
 def meets_bar(evaluation: Mapping[str, Any], bar: Mapping[str, Any]) -> bool:
     """Whether an evaluation's heart attacks and score meet ``bar`` (from
     [`env_solved_bar`][heartpole.records.env_solved_bar])."""
-    score_ok = bar["score_at_least"] is None or evaluation["score"] >= bar["score_at_least"]
-    return bool(evaluation["heart_attacks_per_episode"] <= bar["heart_attacks_per_episode_at_most"] and score_ok)
+    return solved.meets_bar(
+        evaluation["heart_attacks_per_episode"], evaluation["score"],
+        bar["heart_attacks_per_episode_at_most"], bar["score_at_least"],
+    )  # fmt: skip
 
 
 def run_summary(
@@ -186,10 +188,9 @@ def run_summary(
     CPU time of the process that trained and evaluated it, all its threads, where measured).
 
     Solved means a regret whose 95% upper bound is at most
-    [`SOLVED_REGRET`][heartpole.evaluation.SOLVED_REGRET] where the optimum is known
+    [`SOLVED_REGRET`][heartpole.solved.SOLVED_REGRET] where the optimum is known
     ([`heartpole.optimum`][heartpole.optimum]), and the env's heart-attack and score bar elsewhere.
     """
-    from heartpole.evaluation import SOLVED_REGRET
 
     bar = env_solved_bar(config.env_id, config.env_kwargs)
     by_regret = evaluation.get("solved")
@@ -206,7 +207,7 @@ def run_summary(
         "regret": evaluation.get("regret"),
         "regret_ci95": evaluation.get("regret_ci95"),
         "solved": meets_bar(evaluation, bar) if by_regret is None else by_regret,
-        "solved_bar": bar if by_regret is None else {"regret_at_most": SOLVED_REGRET},
+        "solved_bar": bar if by_regret is None else {"regret_at_most": solved.SOLVED_REGRET},
         "train_seconds": round(train_seconds, 2),
         "wall_seconds": round(wall, 2),
     } | ({} if cpu is None else {"cpu_seconds": round(cpu, 2)})

@@ -25,7 +25,7 @@ import re
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from typing import Any
 
 import gymnasium as gym
@@ -34,8 +34,10 @@ from gymnasium.envs.registration import EnvSpec, parse_env_id
 from heartpole.actions import V0_ACTIONS, Action, as_action
 from heartpole.dynamics import BOOKKEEPING, Dynamics
 from heartpole.env import build_dynamics
-from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords, heart_attack_risk
+from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords
 from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
+from heartpole.solved import V0_BAR, V1_BAR, SolvedBar
+from heartpole.solved import solved_bar as bar_of_params
 
 V0_ID = "HeartPole-v0"
 V1_ID = "HeartPole-v1"
@@ -50,9 +52,8 @@ _BUILTINS = {
 RESERVED_NAME = "HeartPole"
 """HeartPole's own name: ``HeartPole-vN`` ids are HeartPole's versions, never users' variants."""
 
-# The solved bars of v0 and v1 as :func:`solved_bar` computes them (a test checks they agree), written out
-# so that ``import heartpole`` registers them without solving anything.
-BUILTIN_REWARD_THRESHOLDS = {V0_ID: -129.7, V1_ID: -129.37}
+BUILTIN_REWARD_THRESHOLDS = {V0_ID: V0_BAR.reward_threshold, V1_ID: V1_BAR.reward_threshold}
+"""The reward thresholds of v0's and v1's specs, from their bars in [`heartpole.solved`][heartpole.solved]."""
 
 MAX_REST_HALF_HOURS = 48
 """The longest rest an action may take (a day): each rest half-hour is computed every step."""
@@ -99,38 +100,10 @@ def register_envs() -> None:
             )
 
 
-@dataclass(frozen=True)
-class SolvedBar:
-    """When a HeartPole env counts as solved: few heart attacks and a score close to the best known.
-
-    Attributes:
-        heart_attacks_at_most: heart attacks per episode: 5% above the unavoidable floor, the risk at zero
-            blood pressure over ``max_steps`` steps (1.30 for v0).
-        score_at_least: final score: 92% of the best known long-run rate (the ``expert`` policy's: 0.30 for
-            v0, 0.63 for v1); ``None`` when no rate is known (a variant without ``do_nothing`` and
-            ``sleep``).
-        reward_threshold: the return of an episode exactly at both bars, Gymnasium's ``reward_threshold``.
-    """
-
-    heart_attacks_at_most: float
-    score_at_least: float | None
-    reward_threshold: float
-
-
-SOLVED_ATTACKS_ABOVE_FLOOR = 1.05
-SOLVED_SHARE_OF_BEST_SCORE = 0.92
-
-
 def solved_bar(dynamics: Dynamics) -> SolvedBar:
     """The solved bar of the env with ``dynamics``: v0's issue-3 bar (<= 1.30 heart attacks, score >= 0.30)
-    carried over to any variant by the same proportions (see :class:`SolvedBar`)."""
-    params = dynamics.params
-    floor = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
-    attacks = round(SOLVED_ATTACKS_ABOVE_FLOOR * floor, 2)
-    best_rate = best_known_rate(dynamics)
-    score = None if best_rate is None else round(SOLVED_SHARE_OF_BEST_SCORE * best_rate, 2)
-    threshold = round((score or 0.0) - params.heart_attack_penalty * attacks, 6)
-    return SolvedBar(attacks, score, threshold)
+    carried over to any variant by the same proportions ([`solved_bar`][heartpole.solved.solved_bar])."""
+    return bar_of_params(dynamics.params, best_known_rate(dynamics))
 
 
 def register_variant(

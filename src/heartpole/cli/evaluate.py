@@ -259,7 +259,7 @@ def _width_note(result: EvaluationResult) -> list[str]:
 
 
 def _solved_line(result: EvaluationResult) -> str:
-    from heartpole.evaluation import SOLVED_REGRET
+    from heartpole.solved import SOLVED_REGRET
 
     verdict = "solved" if result.solved else "not solved"
     return (
@@ -340,8 +340,9 @@ def format_baselines(results: Sequence[EvaluationResult]) -> str:
 
 def _optimal_note(results: Sequence[EvaluationResult], markdown: bool = False) -> list[str]:
     """``optimal`` minus ``expert`` with its paired interval, and the regret bar, if both were evaluated."""
-    from heartpole.evaluation import SOLVED_REGRET, Comparison
+    from heartpole.evaluation import Comparison
     from heartpole.reporting import has_interval, plus_minus
+    from heartpole.solved import SOLVED_REGRET
 
     by_name = {result.policy: result for result in results}
     if "optimal" not in by_name or "expert" not in by_name:

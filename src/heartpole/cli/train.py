@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
 from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
-from heartpole.evaluation import SOLVED_REGRET
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
+from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
 if TYPE_CHECKING:
     from heartpole.training import ScoreRate, TrainConfig
@@ -31,10 +31,11 @@ ORDER = 20
 ALGORITHMS = SB3_ALGORITHMS
 PRESETS = ("default", "tutorial")
 MAX_SEEDS = 100
-TRAINING_MODULES = ("stable_baselines3", "torch", "tqdm")
+TRAINING_MODULES = ("stable_baselines3", "torch")
 RAY_MODULES = ("ray", "optuna")
 RAY_EXTRA = "pip install 'heartpole[ray]'"
 
+ABOVE_FLOOR, SHARE_OF_BEST = SOLVED_ATTACKS_ABOVE_FLOOR - 1, SOLVED_SHARE_OF_BEST_SCORE
 DESCRIPTION = f"""\
 Train an agent on HeartPole with Stable-Baselines3 on the native vector env, with a progress bar, and
 write to --out: model.zip, vecnormalize.pkl (observation/reward normalisation, when used),
@@ -52,8 +53,9 @@ On another env (--env HeartPole-v1 or a variant) the default preset charges the 
 half-hours at 98% of that env's best known score (--score-rate best: 0.32 for v0, 0.68 for v1), or
 estimates the rate while training where none is known (--score-rate auto). A run is solved when its
 regret against the true optimum (heartpole optimum) is at most {SOLVED_REGRET:g} at the 95% upper bound;
-where no optimum is known (v1, most variants), by the env's own bar: heart attacks at most 5% above the
-unavoidable floor and a score of at least 92% of the best known (v1: 1.30 and 0.63).
+where no optimum is known (v1, most variants), by the env's own bar: heart attacks at most
+{ABOVE_FLOOR:.0%} above the unavoidable floor and a score of at least {SHARE_OF_BEST:.0%} of the best known
+(v1: {V1_BAR.heart_attacks_at_most:.2f} and {V1_BAR.score_at_least:.2f}).
 """
 
 EPILOG = """\

@@ -22,14 +22,16 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from heartpole.jax.env import EnvParams, HeartPoleJax
-from heartpole.model import TIME_ELAPSED, heart_attack_risk
+from heartpole.model import TIME_ELAPSED
+from heartpole.progress import Progress
+from heartpole.rewards import risk_floor, training_reward
 
 CACHE_DIR_VARIABLE = "HEARTPOLE_JAX_CACHE"
 """Environment variable naming the persistent compilation cache's folder (default: the user's cache)."""
@@ -269,7 +271,7 @@ def make_parts(
     in pieces, so that the host can show progress between them (see :func:`make_train`)."""
     n_envs, obs_dim = s.n_envs, env.num_variables
     penalty = params.heart_attack_penalty
-    risk_floor = np.float32(heart_attack_risk(0.0, float(params.heart_attack_proclivity)))
+    floor = np.float32(risk_floor(float(params.heart_attack_proclivity)))
     minibatches = s.rollout // s.batch_size
     step_envs = jax.vmap(env.step, in_axes=(0, 0, 0, None))
 
@@ -278,17 +280,14 @@ def make_parts(
             return obs
         return jnp.clip((obs - stats.mean) / jnp.sqrt(stats.var + 1e-8), -s.clip_obs, s.clip_obs)
 
-    def training_reward(env_reward: jax.Array, before: jax.Array, info: dict[str, jax.Array]) -> jax.Array:
+    def shaped_reward(env_reward: jax.Array, before: jax.Array, info: dict[str, jax.Array]) -> jax.Array:
         # heartpole.training.TrainingReward, as HeartPoleSB3VecEnv.training_reward computes it
+        half_hours = info["final_observation"][:, TIME_ELAPSED] - before[:, TIME_ELAPSED]
         attack = info["heart_attack"].astype(jnp.float32)
-        if s.score_rate is None:
-            score_part = env_reward + penalty * attack
-        else:
-            half_hours = info["final_observation"][:, TIME_ELAPSED] - before[:, TIME_ELAPSED]
-            score_part = (info["productivity"] - s.score_rate * half_hours) / s.horizon
-        if s.expected_risk:
-            return score_part - penalty * (info["heart_attack_risk"] - risk_floor)
-        return score_part - penalty * attack
+        return cast("jax.Array", training_reward(
+            env_reward, attack, info["heart_attack_risk"], info["productivity"], half_hours, penalty=penalty,
+            floor=floor, expected=s.expected_risk, score_rate=s.score_rate, horizon=s.horizon,
+        ))  # fmt: skip
 
     def env_step(runner: Runner, _: Any) -> tuple[Runner, tuple[tuple[jax.Array, ...], tuple[jax.Array, ...]]]:
         key, action_key, step_key = jax.random.split(runner.key, 3)
@@ -300,7 +299,7 @@ def make_parts(
             jax.random.split(step_key, n_envs), runner.env_state, action, params
         )
         done = terminated | truncated
-        reward = training_reward(env_reward, runner.obs, info)
+        reward = shaped_reward(env_reward, runner.obs, info)
         obs_stats = runner.obs_stats.update(obs) if s.normalize_observations else runner.obs_stats
         return_stats, discounted = runner.return_stats, runner.discounted
         if s.normalize_rewards:
@@ -487,10 +486,7 @@ def train_compiled(
     return Trained(runners, ended, settings, timings)
 
 
-def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Any:
-    """A tqdm bar over all seeds' env steps (shown as :class:`heartpole.training.ProgressBar` shows its own)."""
-    from tqdm import tqdm
-
-    disable = True if not show else (False if os.environ.get("HEARTPOLE_PROGRESS") == "1" else None)
+def _progress_bar(total: int, seeds: Sequence[int], show: bool) -> Progress:
+    """A bar over all seeds' env steps (shown where ``show`` and stderr is a terminal or HEARTPOLE_PROGRESS=1)."""
     name = f"training ppo (jax) seed{'s' if len(seeds) > 1 else ''} {','.join(map(str, seeds))}"
-    return tqdm(total=total, desc=name, unit="step", unit_scale=True, disable=disable)
+    return Progress(total, name, enabled=None if show else False, unit="step")

@@ -22,19 +22,7 @@ from typing import Any
 import numpy as np
 
 from heartpole.policies import Policy, RandomPolicy, policy_name
-
-
-def check_actions(actions: object, size: int, num_actions: int, name: str) -> np.ndarray:
-    """``actions`` as an index array, or ``ValueError`` naming the policy, what it returned and what is accepted."""
-    array = np.asarray(actions)
-    expected = f"expected {size} integer actions in 0..{num_actions - 1}"
-    if array.shape != (size,):
-        raise ValueError(f"policy {name!r} returned shape {array.shape} for {size} observations; {expected}")
-    if array.dtype.kind not in "iu":
-        raise ValueError(f"policy {name!r} returned {array.dtype} actions; {expected}")
-    if size and (array.min() < 0 or array.max() >= num_actions):
-        raise ValueError(f"policy {name!r} returned actions {array.min()}..{array.max()}; {expected}")
-    return array.astype(np.intp, copy=False)
+from heartpole.rollout import check_actions as check_actions
 
 
 def action_probabilities(policy: Policy, obs: np.ndarray, num_actions: int) -> np.ndarray:

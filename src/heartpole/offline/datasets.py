@@ -28,6 +28,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
@@ -366,8 +367,7 @@ def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> Non
         for source in (temporary / namespace).glob("*.json"):
             destination = root / namespace / source.name
             if not destination.exists():
-                destination.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(source, destination)
+                files.atomic_write(destination, partial(shutil.copyfile, source))
 
 
 @contextlib.contextmanager

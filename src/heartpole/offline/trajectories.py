@@ -13,14 +13,15 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from heartpole.offline.behaviour import EpsilonGreedy, check_actions, check_deterministic, sample
+from heartpole.offline.behaviour import EpsilonGreedy, check_deterministic, sample
 from heartpole.registry import quiet_version_warnings
+from heartpole.rewards import expected_risk
+from heartpole.rollout import base_env, check_actions, episode_steps, vector_env
 
 if TYPE_CHECKING:
     from minari import MinariDataset
 
     from heartpole.env import HeartPole
-    from heartpole.vector import HeartPoleVectorEnv
 
 INFO_KEYS = ("heart_attack_risk", "productivity", "heart_attack", "score")
 _INFO_DTYPES = {"heart_attack_risk": np.float32, "productivity": np.float32, "heart_attack": bool, "score": np.float32}
@@ -72,7 +73,10 @@ class Trajectories:
         the expected-risk estimate of :func:`heartpole.evaluate`.
         """
         attacks = self.heart_attack[:, 1:].astype(np.float64)
-        return self.rewards + self.penalty * (attacks - self.heart_attack_risk[:, 1:].astype(np.float64))
+        return cast(
+            "np.ndarray",
+            expected_risk(self.rewards, self.heart_attack_risk[:, 1:].astype(np.float64), self.penalty, attacks),
+        )
 
     def returns(self, gamma: float = 1.0, expected: bool = False) -> np.ndarray:
         """``(N,)``: each episode's discounted return from its first observation."""
@@ -160,37 +164,31 @@ def _collect_chunk(
     progress: Callable[[int], None] | None,
     env_kwargs: dict[str, Any],
 ) -> Trajectories:
-    import gymnasium as gym
-
-    with quiet_version_warnings():
-        env = gym.make_vec(env_id, num_envs=size, vectorization_mode="vector_entry_point", **env_kwargs)
-    try:
-        base = cast("HeartPoleVectorEnv", env.unwrapped)
-        steps, num_actions = int(base.max_steps), behaviour.num_actions
-        penalty = float(base.dynamics.params.heart_attack_penalty)
-        obs, _ = env.reset(seed=reset_seed)
-        check_deterministic(behaviour.policy, obs)
-        observations = np.empty((steps + 1, size, obs.shape[1]), dtype=np.float32)
+    with vector_env(env_id, env_kwargs, size) as env:
+        steps, num_actions = int(base_env(env).max_steps), behaviour.num_actions
+        penalty = float(base_env(env).dynamics.params.heart_attack_penalty)
+        obs_dim = int(np.prod(cast("tuple[int, ...]", env.single_observation_space.shape)))
+        observations = np.empty((steps + 1, size, obs_dim), dtype=np.float32)
         probabilities = np.empty((steps + 1, size, num_actions), dtype=np.float64)
         actions = np.empty((steps, size), dtype=np.int64)
         rewards = np.empty((steps, size), dtype=np.float64)
         infos = {key: np.zeros((steps + 1, size), dtype=dtype) for key, dtype in _INFO_DTYPES.items()}
-        truncated = np.zeros(size, dtype=bool)
-        observations[0] = obs
-        for t in range(steps):
+
+        def choose(obs: np.ndarray, t: int) -> np.ndarray:
+            if t == 0:
+                check_deterministic(behaviour.policy, obs)
+            observations[t] = obs
             probabilities[t] = behaviour.action_probabilities(obs)
-            actions[t] = check_actions(sample(probabilities[t], behaviour.rng), size, num_actions, behaviour.name)
-            obs, rewards[t], _, truncated, info = env.step(actions[t])
-            observations[t + 1] = obs
+            return check_actions(sample(probabilities[t], behaviour.rng), size, num_actions, behaviour.name)
+
+        for step in episode_steps(env, reset_seed, choose):
+            actions[step.t], rewards[step.t] = step.actions, step.rewards
             for key in INFO_KEYS:
-                infos[key][t + 1] = info[key]
+                infos[key][step.t + 1] = step.info[key]
             if progress:
                 progress(size)
-        if not np.all(truncated):
-            raise RuntimeError(f"episodes did not end after max_steps={steps} steps")
-        probabilities[steps] = behaviour.action_probabilities(obs)
-    finally:
-        env.close()
+        observations[steps] = step.observations
+        probabilities[steps] = behaviour.action_probabilities(step.observations)
     return Trajectories(
         observations=observations.transpose(1, 0, 2).copy(),
         actions=actions.T.copy(),

@@ -11,22 +11,17 @@ score, heart attacks) and the value OPE estimators usually estimate: the expecte
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any
 
 import numpy as np
 
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
-from heartpole.offline.behaviour import check_actions
 from heartpole.policies import Policy, load_policy, policy_name
-from heartpole.registry import quiet_version_warnings
 from heartpole.reporting import plus_minus
+from heartpole.rewards import expected_risk
+from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
 from heartpole.stats import confidence_interval
-
-if TYPE_CHECKING:
-    from gymnasium.spaces import Discrete
-
-    from heartpole.vector import HeartPoleVectorEnv
 
 DEFAULT_GAMMA = 0.95
 
@@ -130,36 +125,21 @@ def _run(
     act: Policy, name: str, gamma: float, episodes: int, env_id: str, seed: int, env_kwargs: dict[str, Any]
 ) -> dict[str, np.ndarray]:
     """Per-episode discounted and undiscounted sums, realized and expected-risk, in one pass."""
-    import gymnasium as gym
-
-    reset_seed = chunk_seed(seed, 0)
-    try:
-        with quiet_version_warnings():
-            env = gym.make_vec(env_id, num_envs=episodes, vectorization_mode="vector_entry_point", **env_kwargs)
-    except gym.error.Error as error:
-        raise ValueError(f"cannot make a vector env for {env_id!r}: {' '.join(str(error).split())}") from None
-    try:
-        base = cast("HeartPoleVectorEnv", env.unwrapped)
-        steps, num_actions = int(base.max_steps), int(cast("Discrete", env.single_action_space).n)
-        penalty = float(base.dynamics.params.heart_attack_penalty)
-        sums = {key: np.zeros(episodes) for key in ("value", "realized_value", "expected_return", "mean_return")}
-        attacks = np.zeros(episodes)
-        obs, _ = env.reset(seed=reset_seed)
-        discount = 1.0
-        for _ in range(steps):
-            actions = check_actions(act(obs), episodes, num_actions, name)
-            obs, reward, _, truncated, info = env.step(actions)
-            coin = np.asarray(info["heart_attack"], dtype=np.float64)
-            expected = reward + penalty * (coin - np.asarray(info["heart_attack_risk"], dtype=np.float64))
+    sums = {key: np.zeros(episodes) for key in ("value", "realized_value", "expected_return", "mean_return")}
+    attacks = np.zeros(episodes)
+    discount = 1.0
+    with vector_env(env_id, env_kwargs, episodes) as env:
+        penalty = float(base_env(env).dynamics.params.heart_attack_penalty)
+        for step in episode_steps(env, chunk_seed(seed, 0), policy_actions(act, name, env)):
+            reward, coin = step.rewards, np.asarray(step.info["heart_attack"], dtype=np.float64)
+            expected = expected_risk(
+                reward, np.asarray(step.info["heart_attack_risk"], dtype=np.float64), penalty, coin
+            )
             sums["value"] += discount * expected
             sums["realized_value"] += discount * reward
             sums["expected_return"] += expected
             sums["mean_return"] += reward
             attacks += coin
             discount *= gamma
-        if not np.all(truncated):
-            raise RuntimeError(f"episodes did not end after max_steps={steps} steps")
-        score = np.asarray(info["score"], dtype=np.float64)
-    finally:
-        env.close()
+    score = np.asarray(step.info["score"], dtype=np.float64)
     return {**sums, "score": score, "heart_attacks": attacks}

@@ -1,7 +1,7 @@
 """Stable-Baselines3 glue: the VecEnv adapter, the training reward, presets, training runs, multi-seed IQMs.
 
 This package needs the optional ``train`` extra (``pip install 'heartpole[train]'``: Stable-Baselines3,
-PyTorch, tqdm); ``import heartpole`` never imports it. Its parts, each a module of its own (``adapter``,
+PyTorch); ``import heartpole`` never imports it. Its parts, each a module of its own (``adapter``,
 ``reward``, ``presets``, ``callbacks``, ``runs``, ``outputs``), all importable from here, with the run
 records every training backend shares ([`heartpole.records`][heartpole.records]: the files, the evaluation
 of the saved model, the summaries):
@@ -59,7 +59,7 @@ from __future__ import annotations
 import importlib.util
 
 TRAIN_EXTRA = "pip install 'heartpole[train]'"
-"""How to install what training needs (Stable-Baselines3 with PyTorch, tqdm)."""
+"""How to install what training needs (Stable-Baselines3 with PyTorch)."""
 if importlib.util.find_spec("stable_baselines3") is None or importlib.util.find_spec("torch") is None:
     raise ImportError(f"heartpole.training needs Stable-Baselines3 and PyTorch: {TRAIN_EXTRA}")
 

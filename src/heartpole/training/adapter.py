@@ -11,7 +11,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
-from heartpole.model import TIME_ELAPSED, heart_attack_risk
+from heartpole.model import TIME_ELAPSED
+from heartpole.rewards import risk_floor, training_reward
 
 if TYPE_CHECKING:
     from heartpole.vector import HeartPoleVectorEnv
@@ -82,7 +83,7 @@ class HeartPoleSB3VecEnv(VecEnv):
         params = base.dynamics.params
         self.reward = reward
         self.penalty = float(params.heart_attack_penalty)
-        self.risk_floor = float(heart_attack_risk(0.0, params.heart_attack_proclivity))
+        self.risk_floor = risk_floor(params.heart_attack_proclivity)
         super().__init__(int(num_envs), self.vector_env.single_observation_space, self.vector_env.single_action_space)
         self._obs: np.ndarray | None = None
         self._actions: np.ndarray | None = None
@@ -167,23 +168,27 @@ class HeartPoleSB3VecEnv(VecEnv):
         env_reward = np.asarray(env_reward, dtype=np.float64)
         if self.reward.is_env_reward:
             return env_reward
-        attack = np.asarray(info["heart_attack"], dtype=np.float64)
-        if self.reward.score_rate is None:
-            score_part = env_reward + self.penalty * attack
-        else:
-            half_hours = after[:, TIME_ELAPSED].astype(np.float64) - before[:, TIME_ELAPSED]
-            worked = np.asarray(info["productivity"], dtype=np.float64)
-            rate = self._rate if self.reward.score_rate == "auto" else self.reward.score_rate
-            score_part = (worked - rate * half_hours) / self.reward.horizon
-            if self.reward.score_rate == "auto":
-                decay = 1.0 - 1.0 / self.reward.rate_window
-                self._work = decay * self._work + worked.sum()
-                self._time = decay * self._time + half_hours.sum()
-                self._rate = self._work / self._time
-        if self.reward.expected_risk:
-            risk = np.asarray(info["heart_attack_risk"], dtype=np.float64)
-            return score_part - self.penalty * (risk - self.risk_floor)
-        return score_part - self.penalty * attack
+        half_hours = after[:, TIME_ELAPSED].astype(np.float64) - before[:, TIME_ELAPSED]
+        worked = np.asarray(info["productivity"], dtype=np.float64)
+        rate = self._rate if self.reward.score_rate == "auto" else self.reward.score_rate
+        reward: np.ndarray = training_reward(
+            env_reward,
+            np.asarray(info["heart_attack"], dtype=np.float64),
+            np.asarray(info["heart_attack_risk"], dtype=np.float64),
+            worked,
+            half_hours,
+            penalty=self.penalty,
+            floor=self.risk_floor,
+            expected=self.reward.expected_risk,
+            score_rate=rate,
+            horizon=self.reward.horizon,
+        )
+        if self.reward.score_rate == "auto":
+            decay = 1.0 - 1.0 / self.reward.rate_window
+            self._work = decay * self._work + worked.sum()
+            self._time = decay * self._time + half_hours.sum()
+            self._rate = self._work / self._time
+        return reward
 
     def close(self) -> None:
         """Close the native vector env."""

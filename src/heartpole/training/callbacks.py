@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-import os
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import Any
 
 import numpy as np
-
-import heartpole  # noqa: F401  (registers the HeartPole ids)
-
-if TYPE_CHECKING:
-    from tqdm import tqdm
-
-
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
+
+import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole.progress import Progress
 
 # ------------------------------------------------------------------------------------------------------
 # callbacks
@@ -81,22 +76,20 @@ class LearningCurve(BaseCallback):
 
 
 class ProgressBar(BaseCallback):
-    """A tqdm progress bar over the timesteps (shown when stderr is a terminal, or when ``force`` is set)."""
+    """A [`Progress`][heartpole.progress.Progress] bar over the timesteps (shown when stderr is a terminal,
+    with ``HEARTPOLE_PROGRESS=1``, or when ``force`` is set)."""
 
     def __init__(self, total: int, description: str = "training", force: bool = False) -> None:
         super().__init__()
         self.total, self.description, self.force = int(total), description, force
-        self._bar: tqdm[NoReturn] | None = None
+        self._bar: Progress | None = None
 
     def _on_training_start(self) -> None:
-        from tqdm import tqdm
-
-        disable = False if self.force or os.environ.get("HEARTPOLE_PROGRESS") == "1" else None
-        self._bar = tqdm(total=self.total, desc=self.description, unit="step", unit_scale=True, disable=disable)
+        self._bar = Progress(self.total, self.description, enabled=True if self.force else None, unit="step")
 
     def _on_step(self) -> bool:
         if self._bar is not None:
-            self._bar.update(min(self.training_env.num_envs, self.total - self._bar.n))
+            self._bar.update(self.training_env.num_envs)
         return True
 
     def _on_training_end(self) -> None:

@@ -18,14 +18,13 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
 )
 from heartpole.records import env_solved_bar as env_solved_bar  # the bars every backend's summary reports
 from heartpole.records import meets_bar as meets_bar
+from heartpole.solved import V0_HEART_ATTACKS_AT_MOST, V0_SCORE_AT_LEAST
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
-SOLVED_HEART_ATTACKS = 1.30
-"""Issue 3's bar for HeartPole-v0: at most this many heart attacks per episode over 2,000 evaluation
-episodes ..."""
-SOLVED_SCORE = 0.30
-"""... and at least this final productivity score. Other envs have their own bar,
-:func:`heartpole.registry.solved_bar`, which gives these two for v0."""
+SOLVED_HEART_ATTACKS = V0_HEART_ATTACKS_AT_MOST
+"""HeartPole-v0's heart-attack bar ([`heartpole.solved`][heartpole.solved] defines it)."""
+SOLVED_SCORE = V0_SCORE_AT_LEAST
+"""HeartPole-v0's score bar ([`heartpole.solved`][heartpole.solved] defines it)."""
 ScoreRate: TypeAlias = Literal["best", "auto"] | float
 """How a preset sets the shaped reward's rate: ``"best"`` (:data:`RATE_SHARE_OF_BEST` of the env's best known
 score), ``"auto"`` (estimated while training) or the rate itself. See :func:`preset_config`."""
