@@ -165,7 +165,7 @@ def test_jit_and_vmap_over_keys_and_params() -> None:
     # A batch of parameters: proclivity 0 never has a heart attack, proclivity 1 often (drinking coffee).
     batch = jax.tree_util.tree_map(lambda x: jnp.stack([x] * 64), params)
     proclivity = jnp.where(jnp.arange(64) < 32, 0.0, 1.0).astype(jnp.float32)
-    batch = EnvParams(**{**batch.__dict__, "heart_attack_proclivity": proclivity})
+    batch = batch.replace(heart_attack_proclivity=proclivity)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None, 0)))
 
     def body(carry, key):

@@ -21,9 +21,8 @@ import pytest
 
 import heartpole
 from heartpole import Action, Variable
-from heartpole.actions import DRINK_TEA, EXERCISE, SMOKE_CANNABIS, TAKE_NAP, V1_NEW_ACTIONS
+from heartpole.actions import DRINK_TEA, EXERCISE, MAX_REST_HALF_HOURS, SMOKE_CANNABIS, TAKE_NAP, V1_NEW_ACTIONS
 from heartpole.model import alertness_decay, productivity
-from heartpole.registry import MAX_REST_HALF_HOURS
 
 N = 20_000
 TOLERANCE_SE = 4.5
@@ -423,8 +422,8 @@ BAD_DEFINITIONS = [
     ({"actions": [{"name": "tea", "effects": {"alertness": (0.5,)}}]}, r"must be a \(low, high\) pair"),
     ({"actions": [{"name": "tea", "effects": {"alertness": (0, 1, 2)}}]}, r"must be a \(low, high\) pair"),
     ({"actions": [{"name": "tea", "effects": {"alertness": (1.0, 0.5)}}]}, "low <= high"),
-    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.nan)}}]}, "finite numbers"),
-    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.inf)}}]}, "finite numbers"),
+    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.nan)}}]}, "must be a finite number, got nan"),
+    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.inf)}}]}, "must be a finite number, got inf"),
     ({"actions": [{"name": "tea", "effects": [("alertness", 0, 1)]}]}, "effects must be a mapping"),
     ({"actions": [{"name": "drink tea"}]}, "identifier"),
     ({"actions": [{"name": "nap", "rest_half_hours": -1}]}, "rest_half_hours must be an integer >= 0"),

@@ -22,7 +22,7 @@ import numpy as np
 from heartpole import model
 from heartpole.dynamics import Dynamics
 from heartpole.jax.spaces import Box, Discrete
-from heartpole.model import ActionEffects, StepTables
+from heartpole.model import ActionEffects, StepTables, TableFields, table_fields
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
 """:mod:`heartpole.model`'s functions with their own code objects, run on ``jax.numpy``."""
@@ -42,50 +42,57 @@ class EnvState:
 class EnvParams:
     """A variant's numbers as arrays, so that they can be changed, batched and ``vmap``-ed over.
 
-    Per action ``a`` and variable ``v`` (``(num_actions, num_variables)`` arrays): ``effect_low``,
-    ``effect_width``, ``rest_fade``; per action: ``rest``, ``drowsy``, ``sleeps``; per variable: ``floor``,
-    ``fade``, ``anxiety_relief``; scalars: ``heart_attack_proclivity``, ``heart_attack_penalty``,
-    ``wake_low``, ``wake_width`` and ``max_steps_in_episode`` (the truncation limit, gymnax's name).
-    Their meaning is :class:`heartpole.model.ActionEffects` and :class:`heartpole.model.StepTables`'.
+    The model's own tables, their numbers as float32 arrays: ``effects`` is an
+    [`ActionEffects`][heartpole.model.ActionEffects] with one row per action (a ``PerVariable`` field is a
+    ``(num_actions, num_variables)`` array, a ``Number`` field ``(num_actions,)``), ``tables`` a
+    [`StepTables`][heartpole.model.StepTables] (``(num_variables,)`` and scalars; its ``Shape`` fields, which
+    fix the step's loops, stay with the env and are empty here). ``max_steps_in_episode`` is the truncation
+    limit (gymnax's name). Every field of either table reads by its name too (``params.heart_attack_penalty``),
+    and [`replace`][heartpole.jax.env.EnvParams.replace] changes fields by name.
     """
 
-    effect_low: jax.Array
-    effect_width: jax.Array
-    rest_fade: jax.Array
-    rest: jax.Array
-    drowsy: jax.Array
-    sleeps: jax.Array
-    floor: jax.Array
-    fade: jax.Array
-    anxiety_relief: jax.Array
-    heart_attack_proclivity: jax.Array
-    heart_attack_penalty: jax.Array
-    wake_low: jax.Array
-    wake_width: jax.Array
+    effects: ActionEffects
+    tables: StepTables
     max_steps_in_episode: jax.Array
+
+    def __getattr__(self, name: str) -> jax.Array:
+        for table in ("effects", "tables"):
+            if name in _NUMBERS[table]:
+                return getattr(self.__dict__[table], name)
+        raise AttributeError(f"EnvParams has no field {name!r}; it has {[*_NUMBERS['effects'], *_NUMBERS['tables']]}")
+
+    def replace(self, **changes: Any) -> EnvParams:
+        """A copy with ``changes``: fields of either table or ``max_steps_in_episode``, by name."""
+        effects = {k: v for k, v in changes.items() if k in _NUMBERS["effects"]}
+        tables = {k: v for k, v in changes.items() if k in _NUMBERS["tables"]}
+        unknown = set(changes) - set(effects) - set(tables) - {"max_steps_in_episode"}
+        if unknown:
+            raise TypeError(f"EnvParams.replace() got unknown field(s) {sorted(unknown)}")
+        return EnvParams(
+            self.effects._replace(**effects),
+            self.tables._replace(**tables),
+            changes.get("max_steps_in_episode", self.max_steps_in_episode),
+        )
 
     @classmethod
     def from_dynamics(cls, dynamics: Dynamics) -> EnvParams:
-        """The parameters of a :class:`heartpole.Dynamics` (float32; the step limit int32)."""
+        """The parameters of a [`Dynamics`][heartpole.dynamics.Dynamics] (float32; the step limit int32)."""
         f32: Callable[[Any], jax.Array]
         f32 = lambda values: jnp.asarray(np.asarray(values, dtype=np.float32))  # noqa: E731
-        effects, tables = dynamics.effects, dynamics.tables
-        return cls(
-            effect_low=f32([e.effect_low for e in effects]),
-            effect_width=f32([e.effect_width for e in effects]),
-            rest_fade=f32([e.rest_fade for e in effects]),
-            rest=f32([e.rest for e in effects]),
-            drowsy=f32([e.drowsy for e in effects]),
-            sleeps=f32([e.sleeps for e in effects]),
-            floor=f32(tables.floor),
-            fade=f32(tables.fade),
-            anxiety_relief=f32(tables.anxiety_relief),
-            heart_attack_proclivity=f32(tables.heart_attack_proclivity),
-            heart_attack_penalty=f32(tables.heart_attack_penalty),
-            wake_low=f32(tables.wake_low),
-            wake_width=f32(tables.wake_width),
-            max_steps_in_episode=jnp.asarray(dynamics.params.max_steps, dtype=jnp.int32),
+        effects = ActionEffects._make(
+            f32([getattr(e, name) for e in dynamics.effects]) for name in ActionEffects._fields
         )
+        tables = StepTables._make(
+            f32(getattr(dynamics.tables, name)) if name in _NUMBERS["tables"] else () for name in StepTables._fields
+        )
+        return cls(effects, tables, jnp.asarray(dynamics.params.max_steps, dtype=jnp.int32))
+
+
+EFFECTS, TABLES = table_fields(ActionEffects), table_fields(StepTables)
+_NUMBERS = {
+    "effects": (*EFFECTS.per_variable, *EFFECTS.numbers),
+    "tables": (*TABLES.per_variable, *TABLES.numbers),
+}
 
 
 class HeartPoleJax:
@@ -112,7 +119,8 @@ class HeartPoleJax:
         self.dynamics = Dynamics() if dynamics is None else dynamics
         self.num_variables = len(self.dynamics.variables)
         self._num_actions = len(self.dynamics.actions)
-        self._rest_offsets = self.dynamics.tables.rest_offsets  # static: how many drowsy half-hours to unroll
+        # static: the Shape fields fix the step's loops (how many drowsy half-hours to unroll)
+        self._shape = {name: getattr(self.dynamics.tables, name) for name in TABLES.shape}
         self._default_params = EnvParams.from_dynamics(self.dynamics)
 
     @classmethod
@@ -230,30 +238,18 @@ class HeartPoleJax:
 
     # -- the step's inputs as :mod:`heartpole.model` takes them ------------------------------------------
     def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
-        n, action = self.num_variables, jnp.asarray(action, dtype=jnp.int32)
-        row: Callable[[jax.Array], tuple[jax.Array, ...]]
-        row = lambda table: tuple(table[action, v] for v in range(n))  # noqa: E731
-        return ActionEffects(
-            effect_low=row(params.effect_low),
-            effect_width=row(params.effect_width),
-            rest_fade=row(params.rest_fade),
-            rest=params.rest[action],
-            drowsy=params.drowsy[action],
-            sleeps=params.sleeps[action],
-        )
+        """The chosen action's row of ``params.effects``, a ``PerVariable`` field as a tuple."""
+        row = jax.tree_util.tree_map(lambda table: table[jnp.asarray(action, dtype=jnp.int32)], params.effects)
+        return self._as_tuples(row, EFFECTS)
 
     def _tables(self, params: EnvParams) -> StepTables:
-        n = self.num_variables
-        return StepTables(
-            floor=tuple(params.floor[v] for v in range(n)),
-            fade=tuple(params.fade[v] for v in range(n)),
-            anxiety_relief=tuple(params.anxiety_relief[v] for v in range(n)),
-            rest_offsets=self._rest_offsets,
-            heart_attack_proclivity=params.heart_attack_proclivity,
-            heart_attack_penalty=params.heart_attack_penalty,
-            wake_low=params.wake_low,
-            wake_width=params.wake_width,
-        )
+        """``params.tables``, a ``PerVariable`` field as a tuple, the Shape fields the env's own."""
+        return self._as_tuples(params.tables, TABLES)._replace(**self._shape)
+
+    def _as_tuples(self, table: Any, fields: TableFields) -> Any:
+        """``table`` with each ``PerVariable`` array as the tuple of its items, as the model's step reads it."""
+        return table._replace(**{name: tuple(getattr(table, name)[v] for v in range(self.num_variables))
+                                 for name in fields.per_variable})  # fmt: skip
 
 
 def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:
