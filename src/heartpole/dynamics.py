@@ -1,10 +1,10 @@
-"""A HeartPole variant as the numbers its step reads: :class:`Dynamics`.
+"""A HeartPole variant as the numbers its step reads: [`Dynamics`][heartpole.dynamics.Dynamics].
 
-:class:`Dynamics` turns a list of :class:`~heartpole.actions.Action` s, the state
-:class:`~heartpole.model.Variable` s and the :class:`~heartpole.model.Params` into the
-:class:`~heartpole.model.StepTables` of :func:`heartpole.model.step` (what each action does to each
-variable, how each variable fades), and into the packed form :mod:`heartpole.kernel` runs. It holds no
-state of an episode and no formula: the envs hold the state, :mod:`heartpole.model` the formulas.
+[`Dynamics`][heartpole.dynamics.Dynamics] turns a list of [`Action`][heartpole.actions.Action] s, the state
+[`Variable`][heartpole.model.Variable] s and the [`Params`][heartpole.model.Params] into the
+[`StepTables`][heartpole.model.StepTables] of [`step`][heartpole.model.step] (what each action does to each
+variable, how each variable fades), and into the packed form [`heartpole.kernel`][heartpole.kernel] runs. It holds no
+state of an episode and no formula: the envs hold the state, [`heartpole.model`][heartpole.model] the formulas.
 """
 
 from __future__ import annotations
@@ -28,10 +28,10 @@ class Dynamics:
         variables: the state variables in observation order; the first six must be v0's.
 
     Attributes:
-        effects: each action's :class:`~heartpole.model.ActionEffects`, in action-index order.
-        tables: the variables' and parameters' :class:`~heartpole.model.StepTables`.
-        packed: the same as one float32 array, as :func:`heartpole.kernel.step_envs` takes them.
-        layout: the variant's shape, as :func:`heartpole.kernel.layout` gives it to compiled code.
+        effects: each action's [`ActionEffects`][heartpole.model.ActionEffects], in action-index order.
+        tables: the variables' and parameters' [`StepTables`][heartpole.model.StepTables].
+        packed: the same as one float32 array, as [`step_envs`][heartpole.kernel.step_envs] takes them.
+        layout: the variant's shape, as [`layout`][heartpole.kernel.layout] gives it to compiled code.
 
     Raises:
         ValueError: a definition that is not an Action or Variable; no action; duplicate names; variables that
@@ -68,9 +68,9 @@ class Dynamics:
 def step_tables(
     actions: Sequence[Action], variables: Sequence[Variable], params: Params, number: type = np.float32
 ) -> tuple[tuple[ActionEffects, ...], StepTables]:
-    """Each action's :class:`~heartpole.model.ActionEffects` and the variant's
-    :class:`~heartpole.model.StepTables`, every number of type ``number`` (the envs' float32, or ``float``
-    to run :func:`heartpole.model.step` in float64)."""
+    """Each action's [`ActionEffects`][heartpole.model.ActionEffects] and the variant's
+    [`StepTables`][heartpole.model.StepTables], every number of type ``number`` (the envs' float32, or ``float``
+    to run [`step`][heartpole.model.step] in float64)."""
     f32 = number
     names = [v.name for v in variables]
     fade = [_fade(v, params) for v in variables]

@@ -1,6 +1,6 @@
-"""The HeartPole step compiled with numba: :func:`heartpole.model.step` over many people at once.
+"""The HeartPole step compiled with numba: [`step`][heartpole.model.step] over many people at once.
 
-No formula lives here. :mod:`heartpole.model`'s functions are compiled *as written*, with three
+No formula lives here. [`heartpole.model`][heartpole.model]'s functions are compiled *as written*, with three
 bindings of this module's: a float32 ``exp`` that LLVM can vectorise, ``where`` as a branch-free
 select and ``replace`` as numba's in-register tuple update. Their float literals become float32
 constants, so that the whole step computes in float32 (a Python float would make numba compute in
@@ -10,10 +10,11 @@ float64, at half the vector width). What this module adds is the machinery aroun
   hash of ``(key, c, j)``. An env's state is its key and its counter, so copies and pickles continue
   exactly, and two envs (or two policies evaluated alike) with the same key see the same draws.
 * the tables packed in one array, laid out from the model's own definitions of them;
-* :func:`step_envs` and :func:`reset_envs`, the loops over envs; the single env runs one env of them
-  (:func:`step_one`, the same per-env step), so the two agree bit for bit.
+* [`step_envs`][heartpole.kernel.step_envs] and [`reset_envs`][heartpole.kernel.reset_envs], the loops over
+  envs; the single env runs one env of them ([`step_one`][heartpole.kernel.step_one], the same loop), so the
+  two agree bit for bit.
 
-Compiled code is cached on disk where numba can write (:mod:`heartpole.jit`). With ``NUMBA_DISABLE_JIT=1``
+Compiled code is cached on disk where numba can write (`heartpole.jit`). With ``NUMBA_DISABLE_JIT=1``
 everything runs as plain Python.
 """
 
@@ -130,7 +131,7 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
 
 compiled = model.rebind({"exp": exp32, "where": where, "replace": tuple_setitem}, F32, njit(**JIT, **INLINE))
-""":mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs. Float
+"""[`heartpole.model`][heartpole.model]'s functions, compiled: ``compiled.step`` is the step every env runs. Float
 literals become float32 constants: numba would compute in float64 otherwise, at half the vector width."""
 _step, _initial_state, _kept_by_the_step = compiled.step, compiled.initial_state, compiled.kept_by_the_step
 
@@ -156,7 +157,7 @@ def mix32(x: Any) -> Any:
 def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
     """The ``draw``-th uniform of an env's draw number ``counter``: a float32 in [0, 1).
 
-    Three rounds of :func:`mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
+    Three rounds of `mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
     the last hash make the uniform, so every value is a multiple of ``2 ** -24``. A draw's first two
     rounds are shared by its uniforms. An env's counter wraps around after 2 ** 32 draws.
     """
@@ -168,7 +169,7 @@ def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
 
 @njit(**JIT, **INLINE)
 def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
-    """The ``len(zeros) + 2`` uniforms of one step (:func:`heartpole.model.step`'s ``u``), as a tuple.
+    """The ``len(zeros) + 2`` uniforms of one step ([`step`][heartpole.model.step]'s ``u``), as a tuple.
 
     The variables the step keeps itself (``time_since_slept`` ... ``work_done``) take no effects, so their
     uniforms are 0 and cost nothing: the compiled loop drops their hashes.
@@ -191,12 +192,12 @@ def generator_states(rng: np.random.Generator, count: int) -> np.ndarray:
 # Their layout is derived from the model's own definitions: a table's row holds its PerVariable fields,
 # ``n`` numbers each, then its Number fields, one each (model.table_fields); its Shape fields are not packed.
 EFFECTS = model.table_fields(model.ActionEffects)
-"""The fields of an action's row of :func:`pack`'s array, by kind."""
+"""The fields of an action's row of [`pack`][heartpole.kernel.pack]'s array, by kind."""
 TABLES = model.table_fields(model.StepTables)
-"""The fields of the variant's row of :func:`pack`'s array (its last), by kind."""
+"""The fields of the variant's row of [`pack`][heartpole.kernel.pack]'s array (its last), by kind."""
 ACTION_DTYPE = np.int32
-"""The dtype of :func:`step_envs`'s actions: with 32-bit integers in the loop, LLVM vectorises it eight
-floats wide, with 64-bit ones four wide."""
+"""The dtype of [`step_envs`][heartpole.kernel.step_envs]'s actions: with 32-bit integers in the loop, LLVM
+vectorises it eight floats wide, with 64-bit ones four wide."""
 OUTPUTS = {
     "reward": np.float32,
     "productivity": np.float32,
@@ -204,20 +205,21 @@ OUTPUTS = {
     "heart_attack": np.bool_,
     "score": np.float32,
 }
-"""The results of a step, in :func:`step_envs`'s order, with their dtypes."""
+"""The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
 
 
 def new_results(count: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for :func:`step_envs`'s results of ``count`` envs (:data:`OUTPUTS`)."""
+    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`)."""
     return tuple(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values())
 
 
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
-"""Per table (:data:`EFFECTS`, :data:`TABLES`): how many numbers its row holds per variable, and besides."""
+"""Per table (`EFFECTS`, `TABLES`): how many numbers its row holds per variable, and besides."""
 
 
 def row_width(num_variables: int) -> int:
-    """The width of :func:`pack`'s rows for ``num_variables`` variables: the wider of the two tables' rows."""
+    """The width of [`pack`][heartpole.kernel.pack]'s rows for ``num_variables`` variables: the wider of the
+    two tables' rows."""
     (effects, effect_numbers), (tables, table_numbers) = WIDTHS
     return max(effects * num_variables + effect_numbers, tables * num_variables + table_numbers)
 
@@ -233,9 +235,9 @@ def pack_row(table: tuple[Any, ...], fields: model.TableFields) -> list[Any]:
 
 
 def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
-    """``effects`` and ``tables`` as one float32 array of :func:`row_width` columns: a row per action (:data:`EFFECTS`),
-    then a row for ``tables`` (:data:`TABLES`), each padded with zeros. The rest offsets are 0, 1, ... and
-    need only their number (:func:`layout`)."""
+    """``effects`` and ``tables`` as one float32 array of `row_width` columns: a row per action (`EFFECTS`),
+    then a row for ``tables`` (`TABLES`), each padded with zeros. The rest offsets are 0, 1, ... and
+    need only their number ([`layout`][heartpole.kernel.layout])."""
     width = row_width(len(tables.floor))
     rows = [pack_row(e, EFFECTS) for e in effects] + [pack_row(tables, TABLES)]
     return np.array([row + [0.0] * (width - len(row)) for row in rows], dtype=np.float32)
@@ -257,7 +259,7 @@ def _repeat(count: int) -> Any:
 
 
 def _reader(table: type[tuple[Any, ...]], fields: model.TableFields, cell: Any) -> Any:
-    """A compiled ``read(source, start, zeros, shape)``: the ``table`` whose row (:func:`pack_row`) starts at
+    """A compiled ``read(source, start, zeros, shape)``: the ``table`` whose row (`pack_row`) starts at
     ``start`` (unsigned), number ``j`` being ``cell(source, start + j)``, with ``shape`` as its Shape fields."""
     per_variable, numbers = len(fields.per_variable), len(fields.numbers)
     groups, scalars = _repeat(per_variable), _repeat(numbers)
@@ -281,7 +283,7 @@ def _reader(table: type[tuple[Any, ...]], fields: model.TableFields, cell: Any) 
 
 @njit(**JIT, **INLINE)
 def _at(values: Any, index: Any) -> Any:
-    """``values[index]``: a table's numbers read from a row of :func:`pack`'s array, or the action table."""
+    """``values[index]``: a table's numbers read from a row of `pack`'s array, or the action table."""
     return values[index]
 
 
@@ -297,11 +299,11 @@ def _chosen(source: Any, column: Any) -> Any:
 
 
 read_effects = _reader(model.ActionEffects, EFFECTS, _at)
-"""The [`ActionEffects`][heartpole.model.ActionEffects] in a row of :func:`pack`'s array (or the action table)."""
+"""The [`ActionEffects`][heartpole.model.ActionEffects] in a row of `pack`'s array (or the action table)."""
 chosen_effects = _reader(model.ActionEffects, EFFECTS, _chosen)
-"""The [`ActionEffects`][heartpole.model.ActionEffects] of an env's action, selected with masks (:func:`_chosen`)."""
+"""The [`ActionEffects`][heartpole.model.ActionEffects] of an env's action, selected with masks (`_chosen`)."""
 read_tables = _reader(model.StepTables, TABLES, _at)
-"""The [`StepTables`][heartpole.model.StepTables] in :func:`pack`'s last row."""
+"""The [`StepTables`][heartpole.model.StepTables] in [`pack`][heartpole.kernel.pack]'s last row."""
 
 
 @njit(**JIT)
@@ -313,7 +315,7 @@ def _fixed(values: Any, like: Any) -> Any:
 
 @njit(**JIT, **INLINE)
 def _unpack(packed: Any, layout: Any) -> Any:
-    """``(zeros, tables)`` from :func:`pack`'s array: a state of zeros and the
+    """``(zeros, tables)`` from [`pack`][heartpole.kernel.pack]'s array: a state of zeros and the
     [`StepTables`][heartpole.model.StepTables] (its rest offsets 0, 1, ... from the layout)."""
     zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
     rest_offsets = _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1])
@@ -326,8 +328,8 @@ STACK_TABLE_LIMIT = 4096
 
 @intrinsic
 def _stack_floats_intrinsic(typingctx: Any, actions: Any, zeros: Any) -> Any:
-    """A pointer to an action table's float32 (:func:`_action_table`) on the stack of the compiled function
-    that calls it: ``len(actions)`` rows of :func:`row_width`."""
+    """A pointer to an action table's float32 (`_action_table`) on the stack of the compiled function
+    that calls it: ``len(actions)`` rows of `row_width`."""
     count = len(actions) * row_width(len(zeros))
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
@@ -342,11 +344,11 @@ _stack_floats: Any = _stack_floats_intrinsic
 
 @njit(**JIT, **INLINE)
 def _action_table(packed: Any, layout: Any, zeros: Any) -> Any:
-    """:func:`pack`'s action rows, one after the other, copied to a flat array on the caller's stack.
+    """[`pack`][heartpole.kernel.pack]'s action rows, one after the other, copied to a flat array on the caller's stack.
 
     The loop over envs reads each env's action effects from it. LLVM vectorises those reads only from
     memory it knows no written array overlaps, which the caller's stack is, and ``packed`` is not. A table
-    too large for the stack (:data:`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
+    too large for the stack (`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
     """
     width = _row_width(len(zeros))  # known when compiling, as the branch below
     if len(layout[2]) * width <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
@@ -371,7 +373,7 @@ without AVX-512 ignore it. It is an attribute of the loop's own function, not a 
 
 @intrinsic
 def _wide_vectors_intrinsic(typingctx: Any) -> Any:
-    """Let LLVM vectorise the calling function :data:`VECTOR_WIDTH` bits wide (no code of its own)."""
+    """Let LLVM vectorise the calling function `VECTOR_WIDTH` bits wide (no code of its own)."""
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         # llvmlite knows only LLVM's keyword attributes; a string attribute goes into the set as written
@@ -398,46 +400,26 @@ with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
 # hides the addresses from LLVM's vectoriser. The single env is env 0 of a loop over one env: one compiled
 # definition, so the two agree bit for bit.
 @njit(**JIT, **INLINE)
-def _prepare(packed: Any, layout: Any) -> Any:
-    """What every env's step reads: ``(zeros, tables, action table, its row width)``."""
-    zeros, tables = _unpack(packed, layout)
-    return zeros, tables, _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
-
-
-@njit(**JIT, **INLINE)
-def _step_env(envs: Any, i: Any, action: Any, rng: Any, prepared: Any, layout: Any) -> Any:
-    """Env ``i``'s step with ``action``: its state ``envs[:, i]`` and its draw counter in place; returns its
-    results, :data:`OUTPUTS`. The one definition of an env's step, which both loops below inline."""
-    zeros, tables, table, width = prepared
-    state = zeros
-    for v in range(len(zeros)):
-        state = tuple_setitem(state, v, envs[U64(v), i])
-    uniforms = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
-    if len(layout[2]) <= SELECTED_ACTIONS:  # known when compiling: one branch stays
-        effects = chosen_effects((table, width, layout[2], action), U64(0), zeros, ())
-    else:
-        effects = read_effects(table, U64(action) * width, zeros, ())
-    state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
-    for v in range(len(zeros)):
-        envs[U64(v), i] = stored(v, state[v])
-    rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
-    return reward, worked, risk, attack, new_score
-
-
-@njit(**JIT)
-def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
-    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
-    ``results[k][i]``, a tuple of arrays in :data:`OUTPUTS` order (:func:`new_results`).
-
-    The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
-    Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
-    ``packed`` and ``layout`` are :func:`pack`'s and :func:`layout`'s.
-    """
+def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     _wide_vectors()
-    prepared = _prepare(packed, layout)
+    zeros, tables = _unpack(packed, layout)
+    table, width = _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
+    selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
-        reward, worked, risk, attack, new_score = _step_env(envs, i, actions[i], rng, prepared, layout)
+        state = zeros
+        for v in range(len(zeros)):
+            state = tuple_setitem(state, v, envs[U64(v), i])
+        uniforms = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
+        if selected:
+            effects = chosen_effects((table, width, layout[2], actions[i]), U64(0), zeros, ())
+        else:
+            effects = read_effects(table, U64(actions[i]) * width, zeros, ())
+        state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
+        for v in range(len(zeros)):
+            envs[U64(v), i] = stored(v, state[v])
+        rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
         results[0][i] = reward
         results[1][i] = worked
         results[2][i] = risk
@@ -446,13 +428,51 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
 
 
 @njit(**JIT)
+def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
+    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order (`new_results`).
+
+    The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
+    Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
+    ``packed`` and ``layout`` are [`pack`][heartpole.kernel.pack]'s and [`layout`][heartpole.kernel.layout]'s.
+    """
+    _step_envs(envs, results, actions, rng, packed, layout)
+
+
+@intrinsic
+def _on_the_stack_intrinsic(typingctx: Any, value: Any) -> Any:
+    """A pointer to room for one ``value`` on the stack of the compiled function that calls it."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return alloca_once(builder, context.get_data_type(value))
+
+    pointer: Any = nbtypes.CPointer
+    return pointer(value)(value), codegen
+
+
+_on_the_stack: Any = _on_the_stack_intrinsic
+
+
+@njit(**JIT, **INLINE)
+def _one(value: Any) -> Any:
+    """A one-item array holding ``value``, on the caller's stack (no allocation)."""
+    array = carray(_on_the_stack(value), 1)
+    array[0] = value
+    return array
+
+
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    _one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
+
+
+@njit(**JIT)
 def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
-    """Step env 0 of ``envs`` with ``action`` (the single env's path), as :func:`step_envs` steps each env:
-    the same :func:`_step_env`, so the single env is env 0 of a vector env bit for bit. Returns its results
-    as numbers, in :data:`OUTPUTS` order."""
-    zeros, tables = _unpack(packed, layout)  # one env reads the action rows in place, not copied
-    prepared = zeros, tables, packed.reshape(packed.size), U64(_row_width(len(zeros)))
-    return _step_env(envs, U64(0), action, rng, prepared, layout)
+    """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
+    ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
+    loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
+    results = (_one(F32(0.0)), _one(F32(0.0)), _one(F32(0.0)), _one(False), _one(F32(0.0)))
+    _step_envs(envs, results, _one(ACTION_DTYPE(action)), rng, packed, layout)
+    return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 
 @njit(**JIT)
@@ -474,6 +494,6 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one
 
     def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:  # type: ignore[misc]  # noqa: F811
-        """:func:`step_one` run as plain Python, its results as Python numbers."""
+        """[`step_one`][heartpole.kernel.step_one] run as plain Python, its results as Python numbers."""
         reward, worked, risk, attack, new_score = _python_step_one(envs, action, rng, packed, layout)
         return float(reward), float(worked), float(risk), bool(attack), float(new_score)

@@ -4,7 +4,7 @@ Everything here is plain arithmetic on one person's state, in the tutorial's ord
 and constants. The functions take Python or NumPy numbers (a NumPy array gives the curve over many
 values, as in the tutorial's plots). Three things are *bound by the backend* that runs them:
 ``exp``, ``where`` (a branch-free ``a if condition else b``) and ``replace`` (a tuple with one item
-changed). :mod:`heartpole.kernel` compiles this very code with numba, in float32, with its own
+changed). [`heartpole.kernel`][heartpole.kernel] compiles this very code with numba, in float32, with its own
 ``exp``; the JAX env traces it with ``jax.numpy``'s. No formula is written anywhere else.
 
 Time is counted in half-hours. A state is a tuple of floats in observation order (``ALERTNESS`` ...
@@ -81,7 +81,7 @@ def ballmer(intoxication: Number) -> Number:
 def productivity(alertness: Number, intoxication: Number, calm: Number = 0.0) -> Number:
     """Facts 7 and 8: work done in one half-hour, ``alertness * (1 - crippling_anxiety) * ballmer``.
 
-    ``calm`` is anxiety relief (HeartPole-v1's THC; see :attr:`Variable.anxiety_relief`): anxiety sets in
+    ``calm`` is anxiety relief (HeartPole-v1's THC; see `Variable.anxiety_relief`): anxiety sets in
     ``calm`` units of alertness later, ``crippling_anxiety(alertness - calm)``. v0 has none.
     """
     return alertness * (1.0 - crippling_anxiety(alertness - calm)) * ballmer(intoxication)

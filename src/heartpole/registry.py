@@ -48,7 +48,7 @@ _BUILTINS: dict[str, dict[str, Any]] = {
         "entry_points": ("heartpole.variants:HeartPoleV1", "heartpole.variants:HeartPoleV1VectorEnv"),
     },
 }
-"""HeartPole's own variants, defined as users define theirs (:func:`define_variant`)."""
+"""HeartPole's own variants, defined as users define theirs (`define_variant`)."""
 RESERVED_NAME = "HeartPole"
 """HeartPole's own name: ``HeartPole-vN`` ids are HeartPole's versions, never users' variants."""
 
@@ -200,13 +200,13 @@ def define_variant(
 ) -> EnvSpec:
     """Check a variant's definition by building its [`Dynamics`][heartpole.dynamics.Dynamics] and register it:
     the one path of every variant, HeartPole's own v0 and v1 and users' (through
-    [`register_variant`][heartpole.registry.register_variant], which checks their ids first).
+    `register_variant`, which checks their ids first).
 
     The spec's kwargs are the actions, the variables and ``params``, for the env constructors
     (``entry_points`` ``None``: ``heartpole.env:HeartPole`` and ``heartpole.vector:HeartPoleVectorEnv``), or
     ``params`` only for a variant's own constructors, which bind its actions and variables (v1's, whose spec
     so stays plain data). ``reward_threshold`` defaults to the variant's
-    [`solved_bar`][heartpole.registry.solved_bar]. Raises ``ValueError`` naming the id on a bad definition,
+    `solved_bar`. Raises ``ValueError`` naming the id on a bad definition,
     leaving the registry as it was.
     """
     model_params = dict(params or {})

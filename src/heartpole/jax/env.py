@@ -1,6 +1,6 @@
-"""HeartPole as a JAX environment with gymnax's ``Environment`` API: :class:`HeartPoleJax`.
+"""HeartPole as a JAX environment with gymnax's ``Environment`` API: `HeartPoleJax`.
 
-The step is :func:`heartpole.model.step` itself: :data:`MODEL` is :mod:`heartpole.model`'s functions
+The step is [`step`][heartpole.model.step] itself: `MODEL` is [`heartpole.model`][heartpole.model]'s functions
 rebound to ``jax.numpy`` (``exp``, ``where``) with tuples for states, so JAX traces the very code the
 NumPy envs compile with numba. What this module adds is the gymnax machinery around it: the state and
 parameter pytrees, key handling, the step counter, truncation and autoreset.
@@ -25,7 +25,7 @@ from heartpole.jax.spaces import Box, Discrete
 from heartpole.model import ActionEffects, StepTables, TableFields, table_fields
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
-""":mod:`heartpole.model`'s functions with their own code objects, run on ``jax.numpy``."""
+"""[`heartpole.model`][heartpole.model]'s functions with their own code objects, run on ``jax.numpy``."""
 
 
 @jax.tree_util.register_dataclass
@@ -48,7 +48,7 @@ class EnvParams:
     [`StepTables`][heartpole.model.StepTables] (``(num_variables,)`` and scalars; its ``Shape`` fields, which
     fix the step's loops, stay with the env and are empty here). ``max_steps_in_episode`` is the truncation
     limit (gymnax's name). Every field of either table reads by its name too (``params.heart_attack_penalty``),
-    and [`replace`][heartpole.jax.env.EnvParams.replace] changes fields by name.
+    and `replace` changes fields by name.
     """
 
     effects: ActionEffects
@@ -125,7 +125,7 @@ class HeartPoleJax:
 
     @classmethod
     def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
-        """The JAX env of a registered HeartPole id (v0, v1, or a :func:`heartpole.register_variant` one),
+        """The JAX env of a registered HeartPole id (v0, v1, or a `heartpole.register_variant` one),
         made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...)."""
         from heartpole.policies import env_dynamics
 
@@ -168,7 +168,7 @@ class HeartPoleJax:
         return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
-        """:func:`heartpole.model.initial_state` with one uniform draw from ``key``."""
+        """[`initial_state`][heartpole.model.initial_state] with one uniform draw from ``key``."""
         zeros = (jnp.float32(0.0),) * self.num_variables
         uniform = jax.random.uniform(key, (), jnp.float32)
         variables = jnp.stack(MODEL.initial_state(zeros, uniform, self._tables(params)))
@@ -178,7 +178,7 @@ class HeartPoleJax:
     def step_env(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """:func:`heartpole.model.step` with ``len(state) + 2`` uniform draws from ``key``, no reset:
+        """[`step`][heartpole.model.step] with ``len(state) + 2`` uniform draws from ``key``, no reset:
         ``(obs, state, reward, terminated, info)``."""
         n = self.num_variables
         u = jax.random.uniform(key, (n + 2,), jnp.float32)
@@ -201,7 +201,7 @@ class HeartPoleJax:
         return state.variables
 
     def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
-        """gymnax 1.0's observation hook: :meth:`get_obs`."""
+        """gymnax 1.0's observation hook: `get_obs`."""
         return self.get_obs(state, params, key)
 
     def is_truncated(self, state: EnvState, params: EnvParams) -> jax.Array:
@@ -213,7 +213,7 @@ class HeartPoleJax:
         return jnp.bool_(False)
 
     def is_terminal(self, state: EnvState, params: EnvParams) -> jax.Array:
-        """gymnax's older name of :meth:`is_terminated` (time limits excluded)."""
+        """gymnax's older name of `is_terminated` (time limits excluded)."""
         return self.is_terminated(state, params)
 
     def discount(self, state: EnvState, params: EnvParams) -> jax.Array:
@@ -232,11 +232,11 @@ class HeartPoleJax:
         return Box(box.low, box.high, box.shape, jnp.float32)
 
     def state_space(self, params: EnvParams | None = None) -> dict[str, Any]:
-        """The spaces of :class:`EnvState`'s fields."""
+        """The spaces of `EnvState`'s fields."""
         params = self.default_params if params is None else params
         return {"variables": self.observation_space(params), "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32)}
 
-    # -- the step's inputs as :mod:`heartpole.model` takes them ------------------------------------------
+    # -- the step's inputs as [`heartpole.model`][heartpole.model] takes them ------------------------------------------
     def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
         """The chosen action's row of ``params.effects``, a ``PerVariable`` field as a tuple."""
         row = jax.tree_util.tree_map(lambda table: table[jnp.asarray(action, dtype=jnp.int32)], params.effects)
