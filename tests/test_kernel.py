@@ -292,3 +292,24 @@ def test_the_packed_rows_read_back_as_the_models_tables(variant) -> None:
         tables, by_row, by_masks = read(packed, layout, action)
         assert by_row == effects and by_masks == effects
     assert tables == dynamics.tables
+
+
+@pytest.mark.slow
+def test_an_edit_of_the_model_alone_recompiles_the_cached_kernel(tmp_path) -> None:
+    """numba keys a cached function on its own file; the kernel inlines model.py's step, so its cache is keyed
+    on model.py too (heartpole.jit.cache_keyed_on): an edit of the model alone must not run the old step."""
+    import shutil
+    from pathlib import Path
+
+    package = Path(heartpole.__file__).parent
+    shutil.copytree(package, tmp_path / "heartpole", ignore=shutil.ignore_patterns("__pycache__"))
+    code = "import heartpole; e = heartpole.HeartPole(); e.reset(seed=1); print(e.step(0)[4]['productivity'])"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    run = lambda: float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,  # noqa: E731
+                                       check=True).stdout)  # fmt: skip
+    before = run()
+    model_file = tmp_path / "heartpole" / "model.py"
+    line = "    worked = productivity(state[ALERTNESS], state[INTOXICATION], calm)\n"
+    assert line in model_file.read_text()
+    model_file.write_text(model_file.read_text().replace(line, line + "    worked = worked * 3.0\n"))
+    assert run() == pytest.approx(3 * before, rel=1e-6)

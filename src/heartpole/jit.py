@@ -7,8 +7,11 @@ no writable home) the step compiles in memory in every process, with one warning
 
 from __future__ import annotations
 
+import hashlib
+import types
 import warnings
-from typing import Literal, TypedDict
+from pathlib import Path
+from typing import Any, Literal, TypedDict
 
 from numba import njit
 
@@ -72,3 +75,20 @@ INLINE: InlineOptions = {"inline": "always"}
 """numba compiles each function on its own and calls it through its own calling convention, which LLVM
 cannot inline; the model's functions are inlined at numba's level instead, so that the loop over envs
 is one straight stretch of arithmetic that LLVM can vectorise."""
+
+
+def cache_keyed_on(source: types.ModuleType, *dispatchers: Any) -> None:
+    """Key the disk cache of ``dispatchers`` on the file of ``source`` too, not only on their own file.
+
+    numba throws a function's cached code away when the file that defines it changes. The kernel's loops
+    inline [`heartpole.model`][heartpole.model]'s step, so an edit of model.py alone would leave them running
+    the old step from the cache. This adds a hash of that file to the stamp numba checks (its cache file's
+    ``_source_stamp``, an internal: a numba without it keys the cache as numba does).
+    """
+    if source.__file__ is None:
+        return
+    digest = hashlib.sha256(Path(source.__file__).read_bytes()).hexdigest()
+    for dispatcher in dispatchers:
+        cache_file = getattr(getattr(dispatcher, "_cache", None), "_cache_file", None)
+        if cache_file is not None and hasattr(cache_file, "_source_stamp"):
+            cache_file._source_stamp = (cache_file._source_stamp, digest)

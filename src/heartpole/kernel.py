@@ -35,7 +35,7 @@ from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import model
 from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
-from heartpole.jit import INLINE, JIT
+from heartpole.jit import INLINE, JIT, cache_keyed_on
 
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
 # (float32 scalars, tuples of any length, arrays), which no single annotation describes. numba's stubs type an
@@ -119,8 +119,7 @@ def _uint32_operation(name: str) -> Any:
 
 mul32, add32, xor32, shr32 = (_uint32_operation(name) for name in ("mul", "add", "xor", "lshr"))
 
-# Intrinsics run only in compiled code: plain Python stands in for them. (numba.config sets its options at
-# import, from the environment, so they have no static type.)
+# Intrinsics run only in compiled code: plain Python stands in for them (numba.config has no static type).
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _int32_as_float32 = lambda bits: np.int32(bits).view(np.float32)  # noqa: E731
     mul32 = lambda a, b: np.uint32((int(a) * int(b)) & 0xFFFFFFFF)  # noqa: E731
@@ -489,6 +488,7 @@ def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> Non
             rng[COUNTER, i] = add32(rng[COUNTER, i], U32(1))
 
 
+cache_keyed_on(model, step_envs, step_one, reset_envs)  # they inline model's step: its edits recompile them
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one
