@@ -136,6 +136,28 @@ def test_default_params_equal_the_dynamics() -> None:
     assert all(leaf.dtype in (jnp.float32, jnp.int32) for leaf in jax.tree_util.tree_leaves(env.default_params))
 
 
+def test_params_are_the_models_tables_by_name() -> None:
+    """EnvParams is derived from the model's ActionEffects and StepTables: every number of either, by name,
+    equal to the Dynamics'; the Shape fields stay with the env (static under jit)."""
+    dynamics = heartpole.Dynamics(heartpole.V1_ACTIONS, variables=heartpole.V1_VARIABLES)
+    params = HeartPoleJax(dynamics).default_params
+    for name in model.ActionEffects._fields:
+        np.testing.assert_array_equal(getattr(params, name), np.array([getattr(e, name) for e in dynamics.effects]))
+    shape = model.table_fields(model.StepTables).shape
+    for name in model.StepTables._fields:
+        if name in shape:
+            assert getattr(params.tables, name) == ()
+        else:
+            np.testing.assert_array_equal(getattr(params, name), np.asarray(getattr(dynamics.tables, name)))
+    changed = params.replace(heart_attack_penalty=jnp.float32(5.0), max_steps_in_episode=jnp.int32(3))
+    assert float(changed.heart_attack_penalty) == 5.0 and int(changed.max_steps_in_episode) == 3
+    assert float(params.heart_attack_penalty) == 100.0
+    with pytest.raises(TypeError, match=r"unknown field\(s\) \['penalty'\]"):
+        params.replace(penalty=1.0)
+    with pytest.raises(AttributeError, match="EnvParams has no field 'penalty'"):
+        params.penalty  # noqa: B018
+
+
 def test_truncation_at_the_limit_and_autoreset() -> None:
     env, params = make("HeartPole-v0", max_steps=5)
     obs, state = env.reset(jax.random.key(0), params)
@@ -165,7 +187,7 @@ def test_jit_and_vmap_over_keys_and_params() -> None:
     # A batch of parameters: proclivity 0 never has a heart attack, proclivity 1 often (drinking coffee).
     batch = jax.tree_util.tree_map(lambda x: jnp.stack([x] * 64), params)
     proclivity = jnp.where(jnp.arange(64) < 32, 0.0, 1.0).astype(jnp.float32)
-    batch = EnvParams(**{**batch.__dict__, "heart_attack_proclivity": proclivity})
+    batch = batch.replace(heart_attack_proclivity=proclivity)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None, 0)))
 
     def body(carry, key):

@@ -269,3 +269,47 @@ def test_everything_runs_without_numba_compiling(tmp_path) -> None:
         ).stdout
 
     assert run({"NUMBA_DISABLE_JIT": "1"}) == run({}) != ""
+
+
+@pytest.mark.parametrize("variant", ["v0", "v1"])
+def test_the_packed_rows_read_back_as_the_models_tables(variant) -> None:
+    """The kernel's layout is derived from the model's table definitions: what pack writes, the compiled
+    readers (by row, and by masks as the loop over envs selects an action) read back exactly."""
+    dynamics = Dynamics() if variant == "v0" else Dynamics(V1_ACTIONS, variables=V1_VARIABLES)
+    packed, layout, u64 = dynamics.packed, dynamics.layout, np.uint64
+    assert packed.shape == (len(dynamics.actions) + 1, kernel.row_width(len(dynamics.variables)))
+
+    @njit
+    def read(packed, layout, action):
+        zeros, tables = kernel._unpack(packed, layout)
+        table = kernel._action_table(packed, layout, zeros)
+        width = u64(kernel._row_width(len(zeros)))
+        by_row = kernel.read_effects(packed[action], u64(0), zeros, ())
+        by_masks = kernel.chosen_effects((table, width, layout[2], np.int32(action)), u64(0), zeros, ())
+        return tables, by_row, by_masks
+
+    for action, effects in enumerate(dynamics.effects):
+        tables, by_row, by_masks = read(packed, layout, action)
+        assert by_row == effects and by_masks == effects
+    assert tables == dynamics.tables
+
+
+@pytest.mark.slow
+def test_an_edit_of_the_model_alone_recompiles_the_cached_kernel(tmp_path) -> None:
+    """numba keys a cached function on its own file; the kernel inlines model.py's step, so its cache is keyed
+    on model.py too (heartpole.jit.cache_keyed_on): an edit of the model alone must not run the old step."""
+    import shutil
+    from pathlib import Path
+
+    package = Path(heartpole.__file__).parent
+    shutil.copytree(package, tmp_path / "heartpole", ignore=shutil.ignore_patterns("__pycache__"))
+    code = "import heartpole; e = heartpole.HeartPole(); e.reset(seed=1); print(e.step(0)[4]['productivity'])"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    run = lambda: float(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,  # noqa: E731
+                                       check=True).stdout)  # fmt: skip
+    before = run()
+    model_file = tmp_path / "heartpole" / "model.py"
+    line = "    worked = productivity(state[ALERTNESS], state[INTOXICATION], calm)\n"
+    assert line in model_file.read_text()
+    model_file.write_text(model_file.read_text().replace(line, line + "    worked = worked * 3.0\n"))
+    assert run() == pytest.approx(3 * before, rel=1e-6)

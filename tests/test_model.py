@@ -121,3 +121,110 @@ def test_default_params_are_the_tutorials() -> None:
     p = Params()
     assert (p.heart_attack_proclivity, p.max_steps, p.decay_rate, p.sleep_half_hours) == (0.5, 1000, 0.97, 16)
     assert (p.heart_attack_penalty, p.wake_alertness) == (100.0, (0.7, 1.3))
+
+
+# ------------------------------------------------------------------------------------------------------
+# One definition of the step for every backend
+
+
+def scratch_model(tmp_path, monkeypatch, name: str, edit) -> object:
+    """model.py's own source, changed by ``edit``, imported as a module of its own (for this test only)."""
+    import importlib.util
+    import inspect
+    import sys
+
+    path = tmp_path / f"{name}.py"
+    path.write_text(edit(inspect.getsource(model)))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, name, module)  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_helper_called_from_the_step_is_compiled_without_being_listed(tmp_path, monkeypatch) -> None:
+    """A helper added to model.py and called from step runs compiled too: the backends' list of functions is
+    found from step's code. (With a hand-kept list it ran as plain Python and failed compiled, far away, with
+    NameError: name '_half' is not defined.)"""
+    from numba import njit
+
+    from heartpole import kernel
+
+    def add_half(source: str) -> str:
+        old = "    worked = productivity(state[ALERTNESS], state[INTOXICATION], calm)\n"
+        assert old in source
+        helper = 'def _half(x: Number) -> Number:\n    """Half of ``x``."""\n    return x / 2.0\n\n\n'
+        source = source.replace("def step(\n", helper + "def step(\n")
+        return source.replace(old, old + "    worked = _half(worked)\n")
+
+    changed = scratch_model(tmp_path, monkeypatch, "model_with_a_helper", add_half)
+    assert "_half" in changed.FUNCTIONS and "_half" not in model.FUNCTIONS
+    compiled = changed.rebind(
+        {"exp": kernel.exp32, "where": kernel.where, "replace": kernel.tuple_setitem}, np.float32, njit
+    )
+    f32 = np.float32
+    state = (f32(1.1), f32(0.2), f32(0.0), f32(3.0), f32(3.0), f32(2.5), f32(0.4))
+    effects, tables = v1_tables(action=5)  # a nap: v1's rest offsets are not empty (numba iterates no ())
+    uniforms = tuple(f32(u) for u in (0.25, 0.5, 0.75, 0.0, 0.0, 0.0, 0.3, 0.9, 0.999))
+    _, _, worked, *_ = compiled.step(state, effects, uniforms, tables)
+    _, _, unchanged, *_ = kernel.compiled.step(state, effects, uniforms, tables)
+    assert worked == unchanged / f32(2.0)
+
+
+def v1_tables(action: int) -> tuple:
+    from heartpole.actions import V1_ACTIONS, V1_VARIABLES
+    from heartpole.dynamics import Dynamics
+
+    dynamics = Dynamics(V1_ACTIONS, variables=V1_VARIABLES)
+    return dynamics.effects[action], dynamics.tables
+
+
+def test_the_tables_fields_are_typed_by_kind_in_the_order_backends_build_them() -> None:
+    from typing import NamedTuple
+
+    assert model.table_fields(model.ActionEffects) == (
+        ("effect_low", "effect_width", "rest_fade"),
+        ("rest", "drowsy", "sleeps"),
+        (),
+    )
+    fields = model.table_fields(model.StepTables)
+    assert fields.per_variable == ("floor", "fade", "anxiety_relief") and fields.shape == ("rest_offsets",)
+    assert set(fields.numbers) >= {"heart_attack_proclivity", "heart_attack_penalty", "wake_low", "wake_width"}
+
+    class Shuffled(NamedTuple):
+        rest: model.Number
+        effect_low: model.PerVariable
+
+    class Untyped(NamedTuple):
+        rest: int
+
+    with pytest.raises(
+        TypeError, match=r"Shuffled must declare its PerVariable fields first.*\['rest', 'effect_low'\]"
+    ):
+        model.table_fields(Shuffled)
+    with pytest.raises(TypeError, match="Untyped.rest must be annotated PerVariable, Number or Shape"):
+        model.table_fields(Untyped)
+
+
+@pytest.mark.parametrize(
+    "value, accepted",
+    [(1, True), (np.float32(0.5), True), (True, False), (np.bool_(True), False), ("1", False), (None, False)],
+)
+def test_one_rule_for_a_number(value, accepted: bool) -> None:
+    """A number is a Python or NumPy int or float, never a bool: Params, Variable and Action ask check_number."""
+    assert model.is_number(value) is accepted
+    if not accepted:
+        with pytest.raises(ValueError, match="x must be a finite number"):
+            model.check_number("x", value)
+    for bad in (math.nan, math.inf):
+        with pytest.raises(ValueError, match="x must be a finite number"):
+            model.check_number("x", bad)
+    assert model.check_number("x", math.inf, finite=False) == math.inf
+    with pytest.raises(ValueError, match=r"x must be a number \(or \+-math.inf\), got nan"):
+        model.check_number("x", math.nan, finite=False)
+
+
+def test_the_variables_the_step_keeps_are_named_from_its_own_rule() -> None:
+    assert model.BOOKKEEPING == ("time_since_slept", "time_elapsed", "work_done")
+    names = [v.name for v in model.V0_VARIABLES]
+    assert [names.index(n) for n in model.BOOKKEEPING] == [i for i in range(6) if model.kept_by_the_step(i)]

@@ -21,9 +21,16 @@ import pytest
 
 import heartpole
 from heartpole import Action, Variable
-from heartpole.actions import DRINK_TEA, EXERCISE, SMOKE_CANNABIS, TAKE_NAP, V1_NEW_ACTIONS
+from heartpole.actions import (
+    DRINK_TEA,
+    EXERCISE,
+    MAX_REST_HALF_HOURS,
+    SMOKE_CANNABIS,
+    TAKE_NAP,
+    V1_NEW_ACTIONS,
+    as_action,
+)
 from heartpole.model import alertness_decay, productivity
-from heartpole.registry import MAX_REST_HALF_HOURS
 
 N = 20_000
 TOLERANCE_SE = 4.5
@@ -423,8 +430,8 @@ BAD_DEFINITIONS = [
     ({"actions": [{"name": "tea", "effects": {"alertness": (0.5,)}}]}, r"must be a \(low, high\) pair"),
     ({"actions": [{"name": "tea", "effects": {"alertness": (0, 1, 2)}}]}, r"must be a \(low, high\) pair"),
     ({"actions": [{"name": "tea", "effects": {"alertness": (1.0, 0.5)}}]}, "low <= high"),
-    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.nan)}}]}, "finite numbers"),
-    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.inf)}}]}, "finite numbers"),
+    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.nan)}}]}, "must be a finite number, got nan"),
+    ({"actions": [{"name": "tea", "effects": {"alertness": (0.0, math.inf)}}]}, "must be a finite number, got inf"),
     ({"actions": [{"name": "tea", "effects": [("alertness", 0, 1)]}]}, "effects must be a mapping"),
     ({"actions": [{"name": "drink tea"}]}, "identifier"),
     ({"actions": [{"name": "nap", "rest_half_hours": -1}]}, "rest_half_hours must be an integer >= 0"),
@@ -492,6 +499,35 @@ def test_bad_definitions_fail_when_defined(definition: dict, message: str) -> No
         heartpole.register_variant("BadPole-v0", **definition)
     assert str(raised.value).startswith("HeartPole variant 'BadPole-v0': ") or "replace" in definition
     assert "BadPole-v0" not in gym.registry
+
+
+@pytest.mark.parametrize(
+    "definition",
+    [
+        {"actions": [{"name": "x", "effects": {"work_done": (0, 1)}}]},
+        {"actions": [TEA, TEA]},
+        {"variables": (*heartpole.V0_VARIABLES, STRESS, STRESS)},
+        {"variables": [STRESS, *heartpole.V0_VARIABLES]},
+        {"actions": heartpole.V1_ACTIONS},
+    ],
+)
+def test_an_env_and_a_variant_refuse_a_definition_by_one_rule(definition: dict) -> None:
+    """A variant's rules live in one place (heartpole.dynamics), so the env's constructor and register_variant
+    refuse a bad definition with the same message."""
+    objects = {
+        "actions": [as_action(a) for a in definition.get("actions", heartpole.V0_ACTIONS)],
+        "variables": definition.get("variables", heartpole.V0_VARIABLES),
+    }
+    with pytest.raises(ValueError) as by_env:
+        heartpole.HeartPole(**objects)
+    with pytest.raises(ValueError) as by_variant:
+        heartpole.register_variant("BadPole-v0", **definition)
+    assert str(by_variant.value) == f"HeartPole variant 'BadPole-v0': {by_env.value}"
+
+
+def test_an_action_checks_its_own_rest() -> None:
+    with pytest.raises(ValueError, match="Action 'nap' rests 49 half-hours; at most 48"):
+        Action("nap", rest_half_hours=MAX_REST_HALF_HOURS + 1)
 
 
 @pytest.mark.parametrize(

@@ -10,14 +10,14 @@ tutorial's homework) without touching the physiology::
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
+from heartpole.model import V0_VARIABLES, Variable, check_integer, check_pair
 
-from heartpole.model import V0_VARIABLES, Variable, check_integer
+MAX_REST_HALF_HOURS = 48
+"""The longest rest an action may take (a day): each rest half-hour is computed every step."""
 
 Effects = Mapping[str, tuple[float, float]]
 
@@ -58,6 +58,11 @@ class Action:
             raise ValueError(f"Action name must be a non-empty identifier such as 'drink_tea', got {self.name!r}")
         object.__setattr__(self, "effects", _frozen_effects(self.name, self.effects))
         check_integer(f"Action {self.name!r}: rest_half_hours", self.rest_half_hours, 0)
+        if self.rest_half_hours > MAX_REST_HALF_HOURS:
+            raise ValueError(
+                f"Action {self.name!r} rests {self.rest_half_hours} half-hours; at most {MAX_REST_HALF_HOURS} (a "
+                "day) are accepted. For a night's sleep use sleeps=True and the sleep_half_hours parameter"
+            )
         if not isinstance(self.sleeps, bool):
             raise ValueError(f"Action {self.name!r}: sleeps must be True or False, got {self.sleeps!r}")
 
@@ -76,18 +81,12 @@ def _frozen_effects(action: str, effects: object) -> Mapping[str, tuple[float, f
     for variable, bounds in effects.items():
         if not isinstance(variable, str):
             raise ValueError(f"Action {action!r}: effect keys must be variable names, got {variable!r}")
-        if not (isinstance(bounds, (tuple, list)) and len(bounds) == 2):
-            raise ValueError(f"Action {action!r}: effect on {variable!r} must be a (low, high) pair, got {bounds!r}")
-        low, high = bounds
-        numbers = all(
-            isinstance(b, (int, float, np.integer, np.floating)) and not isinstance(b, bool) and math.isfinite(b)
-            for b in bounds
-        )
-        if not numbers or low > high:
+        low, high = check_pair(f"Action {action!r}: effect on {variable!r}", bounds)
+        if low > high:
             raise ValueError(
                 f"Action {action!r}: effect on {variable!r} must be finite numbers with low <= high, got {bounds!r}"
             )
-        frozen[variable] = (float(low), float(high))
+        frozen[variable] = (low, high)
     return _ReadOnlyDict(frozen)
 
 

@@ -1,24 +1,22 @@
-"""A HeartPole variant as the numbers its step reads: :class:`Dynamics`.
+"""A HeartPole variant as the numbers its step reads: [`Dynamics`][heartpole.dynamics.Dynamics].
 
-:class:`Dynamics` turns a list of :class:`~heartpole.actions.Action` s, the state
-:class:`~heartpole.model.Variable` s and the :class:`~heartpole.model.Params` into the
-:class:`~heartpole.model.StepTables` of :func:`heartpole.model.step` (what each action does to each
-variable, how each variable fades), and into the packed form :mod:`heartpole.kernel` runs. It holds no
-state of an episode and no formula: the envs hold the state, :mod:`heartpole.model` the formulas.
+[`Dynamics`][heartpole.dynamics.Dynamics] turns a list of [`Action`][heartpole.actions.Action] s, the state
+[`Variable`][heartpole.model.Variable] s and the [`Params`][heartpole.model.Params] into the
+[`StepTables`][heartpole.model.StepTables] of [`step`][heartpole.model.step] (what each action does to each
+variable, how each variable fades), and into the packed form [`heartpole.kernel`][heartpole.kernel] runs. It holds no
+state of an episode and no formula: the envs hold the state, [`heartpole.model`][heartpole.model] the formulas.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from heartpole import kernel
 from heartpole.actions import V0_ACTIONS, Action
-from heartpole.model import V0_VARIABLES, ActionEffects, Params, StepTables, Variable
-
-BOOKKEEPING = ("time_since_slept", "time_elapsed", "work_done")
-"""Variables the step keeps itself; an action may not write to them."""
+from heartpole.model import BOOKKEEPING, V0_VARIABLES, ActionEffects, Params, StepTables, Variable
 
 
 class Dynamics:
@@ -30,13 +28,16 @@ class Dynamics:
         variables: the state variables in observation order; the first six must be v0's.
 
     Attributes:
-        effects: each action's :class:`~heartpole.model.ActionEffects`, in action-index order.
-        tables: the variables' and parameters' :class:`~heartpole.model.StepTables`.
-        packed: the same as one float32 array, as :func:`heartpole.kernel.step_envs` takes them.
-        layout: the variant's shape, as :func:`heartpole.kernel.layout` gives it to compiled code.
+        effects: each action's [`ActionEffects`][heartpole.model.ActionEffects], in action-index order.
+        tables: the variables' and parameters' [`StepTables`][heartpole.model.StepTables].
+        packed: the same as one float32 array, as [`step_envs`][heartpole.kernel.step_envs] takes them.
+        layout: the variant's shape, as [`layout`][heartpole.kernel.layout] gives it to compiled code.
 
     Raises:
-        ValueError: on an empty or duplicated action set, or an effect on an unknown or bookkeeping variable.
+        ValueError: a definition that is not an Action or Variable; no action; duplicate names; variables that
+            do not start with v0's six; an effect on a variable the variant lacks, that the step keeps itself
+            or that has a finite high bound (the step does not cap variables). Each Action, Variable and
+            Params checks its own fields when it is made; these are the rules of a variant as a whole.
     """
 
     def __init__(
@@ -48,8 +49,8 @@ class Dynamics:
         self.actions = tuple(actions)
         self.params = Params() if params is None else params
         self.variables = tuple(variables)
-        self.names = tuple(v.name for v in self.variables)
         _check_definitions(self.actions, self.variables)
+        self.names = tuple(v.name for v in self.variables)
         with np.errstate(over="ignore"):  # a number beyond float32 is refused just below, with its name
             self.effects, self.tables = step_tables(self.actions, self.variables, self.params)
         _check_float32(self.effects, self.tables)
@@ -67,9 +68,9 @@ class Dynamics:
 def step_tables(
     actions: Sequence[Action], variables: Sequence[Variable], params: Params, number: type = np.float32
 ) -> tuple[tuple[ActionEffects, ...], StepTables]:
-    """Each action's :class:`~heartpole.model.ActionEffects` and the variant's
-    :class:`~heartpole.model.StepTables`, every number of type ``number`` (the envs' float32, or ``float``
-    to run :func:`heartpole.model.step` in float64)."""
+    """Each action's [`ActionEffects`][heartpole.model.ActionEffects] and the variant's
+    [`StepTables`][heartpole.model.StepTables], every number of type ``number`` (the envs' float32, or ``float``
+    to run [`step`][heartpole.model.step] in float64)."""
     f32 = number
     names = [v.name for v in variables]
     fade = [_fade(v, params) for v in variables]
@@ -122,22 +123,44 @@ def _fade(variable: Variable, params: Params) -> float:
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:
+    """The rules of a variant as a whole (each action, variable and parameter checks itself when made)."""
     if not actions:
         raise ValueError("a HeartPole variant needs at least one action")
-    for a in actions:
-        if not isinstance(a, Action):
-            raise ValueError(f"actions must be heartpole.Action objects, got {a!r}")
-    names = [a.name for a in actions]
-    if len(set(names)) != len(names):
-        raise ValueError(f"action names must be unique, got {names}")
-    var_names = [v.name for v in variables]
-    if tuple(var_names[:6]) != tuple(v.name for v in V0_VARIABLES):
-        raise ValueError(f"the first six variables must be v0's {[v.name for v in V0_VARIABLES]}, got {var_names[:6]}")
-    if len(set(var_names)) != len(var_names):
-        raise ValueError(f"variable names must be unique, got {var_names}")
-    for a in actions:
-        for name in a.effects:
-            if name not in var_names:
-                raise ValueError(f"action {a.name!r} changes unknown variable {name!r}; variables are {var_names}")
+    for kind, definitions in ((Action, actions), (Variable, variables)):
+        for definition in definitions:
+            if not isinstance(definition, kind):
+                raise ValueError(f"expected heartpole.{kind.__name__} objects, got {definition!r}")
+    _check_unique("action", [a.name for a in actions])
+    if variables[: len(V0_VARIABLES)] != V0_VARIABLES:
+        raise ValueError(
+            f"the first six variables must be v0's exactly, {[v.name for v in V0_VARIABLES]} "
+            f"(heartpole.V0_VARIABLES), since the step itself reads and writes them; got "
+            f"{[v.name for v in variables[: len(V0_VARIABLES)]]}. Add yours after them: "
+            "variables=(*heartpole.V0_VARIABLES, my_variable)"
+        )
+    _check_unique("variable", [v.name for v in variables])
+    by_name = {v.name: v for v in variables}
+    for action in actions:
+        for name, (_, high) in action.effects.items():
             if name in BOOKKEEPING:
-                raise ValueError(f"action {a.name!r} may not change {name!r}, which the step keeps itself")
+                raise ValueError(
+                    f"action {action.name!r} may not change {name!r}, which the step keeps itself; actions may "
+                    f"change {[v for v in by_name if v not in BOOKKEEPING]}"
+                )
+            if name not in by_name:
+                raise ValueError(
+                    f"action {action.name!r} changes {name!r}, which is not a state variable of this variant "
+                    f"({list(by_name)}); add it, e.g. variables=(*heartpole.V0_VARIABLES, "
+                    f"heartpole.Variable({name!r}, 0.0, decay=0.9))"
+                )
+            if high > 0 and math.isfinite(by_name[name].high):
+                raise ValueError(
+                    f"action {action.name!r} raises {name!r}, whose high bound is {by_name[name].high}: the step "
+                    "keeps variables above their low bound but does not cap them, so use high=math.inf"
+                )
+
+
+def _check_unique(kind: str, names: list[str]) -> None:
+    duplicates = sorted({name for name in names if names.count(name) > 1})
+    if duplicates:
+        raise ValueError(f"{kind} names must be unique; {duplicates} appear more than once in {names}")

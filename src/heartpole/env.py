@@ -227,11 +227,12 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self.max_steps = int(max_steps)
         self.action_space = spaces.Discrete(len(self.dynamics.actions))
         self.observation_space = observation_space(self.dynamics)
-        self._state: np.ndarray | None = None
-        self._rng = np.zeros(3, dtype=np.uint32)  # the key's two halves and the draw counter
+        # One env of the kernel's loop over envs: its state (num_variables, 1) and its generator state (the
+        # key's two halves and the draw counter).
+        self._envs: np.ndarray | None = None
+        self._rng = np.zeros((3, 1), dtype=np.uint32)
         self._action_names = tuple(a.name for a in self.dynamics.actions)
         self._num_actions = len(self._action_names)
-        self._packed, self._layout = self.dynamics.packed, self.dynamics.layout[:2]
         self._steps = 0
         self._last_action: int | None = None
         self._last_attack = False
@@ -248,6 +249,11 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     def action_names(self) -> tuple[str, ...]:
         """The actions' names, in action-index order: ``action_names[info["action_taken"]]`` names a step's."""
         return self._action_names
+
+    @property
+    def _state(self) -> np.ndarray | None:
+        """The state of the episode (a view of the kernel's one env), ``None`` before ``reset``."""
+        return None if self._envs is None else self._envs[:, 0]
 
     @property
     def state(self) -> dict[str, float]:
@@ -267,22 +273,24 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         super().reset(seed=seed)
         envs = np.zeros((len(self.dynamics.variables), 1), dtype=np.float32)
         rng = kernel.generator_states(self.np_random, 1)
-        kernel.reset_envs(envs, rng, np.ones(1, dtype=bool), self._packed, self.dynamics.layout)
-        self._state, self._rng = envs[:, 0].copy(), rng[:, 0].copy()
+        kernel.reset_envs(envs, rng, np.ones(1, dtype=bool), self.dynamics.packed, self.dynamics.layout)
+        self._envs, self._rng = envs, rng
         self._steps = 0
         self._last_action, self._last_attack, self._heart_attacks = None, False, 0
         self._log.clear()
         if self.render_mode == "human":
             self.render()
-        return self._state.copy(), dict(RESET_INFO)
+        return envs[:, 0].copy(), dict(RESET_INFO)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
         index = action if type(action) is int and 0 <= action < self._num_actions else self._index(action)
-        state = self._state
-        if state is None:
+        envs = self._envs
+        if envs is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
-        reward, worked, risk, attack, new_score = kernel.step_one(state, index, self._rng, self._packed, self._layout)
+        reward, worked, risk, attack, new_score = kernel.step_one(
+            envs, index, self._rng, self.dynamics.packed, self.dynamics.layout
+        )
         self._steps += 1
         if self.render_mode is not None:
             self._remember(index, attack)
@@ -293,7 +301,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             "productivity": worked,
             "score": new_score,
         }
-        return state.copy(), reward, False, self._steps >= self.max_steps, info
+        return envs[:, 0].copy(), reward, False, self._steps >= self.max_steps, info
 
     def render(self) -> str | np.ndarray | None:
         """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""

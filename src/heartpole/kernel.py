@@ -1,6 +1,6 @@
-"""The HeartPole step compiled with numba: :func:`heartpole.model.step` over many people at once.
+"""The HeartPole step compiled with numba: [`step`][heartpole.model.step] over many people at once.
 
-No formula lives here. :mod:`heartpole.model`'s functions are compiled *as written*, with three
+No formula lives here. [`heartpole.model`][heartpole.model]'s functions are compiled *as written*, with three
 bindings of this module's: a float32 ``exp`` that LLVM can vectorise, ``where`` as a branch-free
 select and ``replace`` as numba's in-register tuple update. Their float literals become float32
 constants, so that the whole step computes in float32 (a Python float would make numba compute in
@@ -9,20 +9,19 @@ float64, at half the vector width). What this module adds is the machinery aroun
 * a counter-based random number generator: the ``j``-th uniform of an env's ``c``-th draw is a keyed
   hash of ``(key, c, j)``. An env's state is its key and its counter, so copies and pickles continue
   exactly, and two envs (or two policies evaluated alike) with the same key see the same draws.
-* :func:`step_envs` and :func:`reset_envs`, the loops over envs that the single and the vector env
-  both call; the single env is simply one env of them, so the two agree bit for bit.
+* the tables packed in one array, laid out from the model's own definitions of them;
+* [`step_envs`][heartpole.kernel.step_envs] and [`reset_envs`][heartpole.kernel.reset_envs], the loops over
+  envs; the single env runs one env of them ([`step_one`][heartpole.kernel.step_one], the same loop), so the
+  two agree bit for bit.
 
-Compiled code is cached on disk (numba's ``cache=True``): the first use after an install compiles for a
-few seconds, later processes load it. Where numba can write nowhere (a read-only install run by a user with
-no writable home) the step compiles in memory in every process, with one warning naming ``NUMBA_CACHE_DIR``.
-With ``NUMBA_DISABLE_JIT=1`` everything runs as plain Python.
+Compiled code is cached on disk where numba can write (`heartpole.jit`). With ``NUMBA_DISABLE_JIT=1``
+everything runs as plain Python.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
-from typing import Any, Literal, TypedDict
+from typing import Any
 
 import numba
 import numpy as np
@@ -35,6 +34,8 @@ from numba.np.numpy_support import carray as _carray
 from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import model
+from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
+from heartpole.jit import INLINE, JIT, cache_keyed_on
 
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
 # (float32 scalars, tuples of any length, arrays), which no single annotation describes. numba's stubs type an
@@ -44,67 +45,6 @@ tuple_setitem: Any = _tuple_setitem
 to_fixed_tuple: Any = _to_fixed_tuple
 carray: Any = _carray
 alloca_once: Any = cgutils.alloca_once
-
-
-class JitOptions(TypedDict):
-    """The type of :data:`JIT`: keyword arguments of ``numba.njit``."""
-
-    cache: bool
-    error_model: Literal["python", "numpy"]
-    nogil: bool
-    fastmath: set[str]
-
-
-class InlineOptions(TypedDict):
-    """The type of :data:`INLINE`: keyword arguments of ``numba.njit``."""
-
-    inline: Literal["never", "always"]
-
-
-CACHE_WARNING = (
-    "HeartPole compiles its step in memory, again in every process (a few seconds): numba finds no writable "
-    "folder to cache compiled code in (beside the installed package, or the user's cache). Set NUMBA_CACHE_DIR "
-    "to a writable folder to keep it."
-)
-"""The one warning of an install that numba cannot cache beside, run by a user with no writable home."""
-
-
-def _cacheable() -> bool:
-    """Whether numba can cache this module's compiled code on disk, asked of numba itself.
-
-    numba picks a folder when a function is decorated with ``cache=True``: ``$NUMBA_CACHE_DIR`` if set,
-    else ``__pycache__`` beside the source, else the user's cache (``~/.cache/numba``); with none writable
-    (a read-only install, no writable home) the decoration raises ``RuntimeError``. This probe makes that
-    choice once, for this very file, so the import never fails: compiled code then lives in memory only.
-    """
-    try:
-        njit(cache=True)(_cacheable)
-    except RuntimeError:
-        warnings.warn(CACHE_WARNING, RuntimeWarning, stacklevel=3)
-        return False
-    return True
-
-
-CACHE = _cacheable()
-"""Whether numba caches compiled code on disk here: every ``njit`` of the package passes ``cache=CACHE``."""
-
-JIT: JitOptions = {
-    "cache": CACHE,
-    "error_model": "numpy",
-    "nogil": True,
-    "fastmath": {"contract", "arcp"},
-}
-"""numba options for everything here: cached on disk where numba can write (:func:`_cacheable`); division
-follows NumPy (no ZeroDivisionError
-checks, which stop LLVM from vectorising); the GIL is released. Two of LLVM's fast-math liberties, no
-others: ``contract`` fuses a multiply and an add into one instruction (rounded once), ``arcp`` divides by
-a constant as a multiplication by its reciprocal; infinities, NaNs and the order of operations stay
-IEEE's. They took the v0 loop from 131 to 109 us at 16,384 envs."""
-
-INLINE: InlineOptions = {"inline": "always"}
-"""numba compiles each function on its own and calls it through its own calling convention, which LLVM
-cannot inline; the model's functions are inlined at numba's level instead, so that the loop over envs
-is one straight stretch of arithmetic that LLVM can vectorise."""
 
 
 F32, U64 = np.float32, np.uint64
@@ -179,8 +119,7 @@ def _uint32_operation(name: str) -> Any:
 
 mul32, add32, xor32, shr32 = (_uint32_operation(name) for name in ("mul", "add", "xor", "lshr"))
 
-# Intrinsics run only in compiled code: plain Python stands in for them. (numba.config sets its options at
-# import, from the environment, so they have no static type.)
+# Intrinsics run only in compiled code: plain Python stands in for them (numba.config has no static type).
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _int32_as_float32 = lambda bits: np.int32(bits).view(np.float32)  # noqa: E731
     mul32 = lambda a, b: np.uint32((int(a) * int(b)) & 0xFFFFFFFF)  # noqa: E731
@@ -191,7 +130,7 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
 
 compiled = model.rebind({"exp": exp32, "where": where, "replace": tuple_setitem}, F32, njit(**JIT, **INLINE))
-""":mod:`heartpole.model`'s functions, compiled: ``compiled.step`` is the step every env runs. Float
+"""[`heartpole.model`][heartpole.model]'s functions, compiled: ``compiled.step`` is the step every env runs. Float
 literals become float32 constants: numba would compute in float64 otherwise, at half the vector width."""
 _step, _initial_state, _kept_by_the_step = compiled.step, compiled.initial_state, compiled.kept_by_the_step
 
@@ -217,7 +156,7 @@ def mix32(x: Any) -> Any:
 def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
     """The ``draw``-th uniform of an env's draw number ``counter``: a float32 in [0, 1).
 
-    Three rounds of :func:`mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
+    Three rounds of `mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
     the last hash make the uniform, so every value is a multiple of ``2 ** -24``. A draw's first two
     rounds are shared by its uniforms. An env's counter wraps around after 2 ** 32 draws.
     """
@@ -229,7 +168,7 @@ def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
 
 @njit(**JIT, **INLINE)
 def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
-    """The ``len(zeros) + 2`` uniforms of one step (:func:`heartpole.model.step`'s ``u``), as a tuple.
+    """The ``len(zeros) + 2`` uniforms of one step ([`step`][heartpole.model.step]'s ``u``), as a tuple.
 
     The variables the step keeps itself (``time_since_slept`` ... ``work_done``) take no effects, so their
     uniforms are 0 and cost nothing: the compiled loop drops their hashes.
@@ -249,10 +188,15 @@ def generator_states(rng: np.random.Generator, count: int) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------------------------
 # The tables, packed into one float32 array: a call from Python unboxes one array, not dozens of numbers.
-SCALARS = ("heart_attack_proclivity", "heart_attack_penalty", "wake_low", "wake_width")
+# Their layout is derived from the model's own definitions: a table's row holds its PerVariable fields,
+# ``n`` numbers each, then its Number fields, one each (model.table_fields); its Shape fields are not packed.
+EFFECTS = model.table_fields(model.ActionEffects)
+"""The fields of an action's row of [`pack`][heartpole.kernel.pack]'s array, by kind."""
+TABLES = model.table_fields(model.StepTables)
+"""The fields of the variant's row of [`pack`][heartpole.kernel.pack]'s array (its last), by kind."""
 ACTION_DTYPE = np.int32
-"""The dtype of :func:`step_envs`'s actions: with 32-bit integers in the loop, LLVM vectorises it eight
-floats wide, with 64-bit ones four wide."""
+"""The dtype of [`step_envs`][heartpole.kernel.step_envs]'s actions: with 32-bit integers in the loop, LLVM
+vectorises it eight floats wide, with 64-bit ones four wide."""
 OUTPUTS = {
     "reward": np.float32,
     "productivity": np.float32,
@@ -260,24 +204,42 @@ OUTPUTS = {
     "heart_attack": np.bool_,
     "score": np.float32,
 }
-"""The results of a step, in :func:`step_envs`'s order, with their dtypes."""
+"""The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
 
 
 def new_results(count: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for :func:`step_envs`'s results of ``count`` envs (:data:`OUTPUTS`)."""
+    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`)."""
     return tuple(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values())
 
 
-def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
-    """``effects`` and ``tables`` as one float32 array: a row per action, then a row for ``tables``.
+WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
+"""Per table (`EFFECTS`, `TABLES`): how many numbers its row holds per variable, and besides."""
 
-    Row ``a``: effect_low, effect_width, rest_fade (``n`` values each), rest, drowsy, sleeps and a 0.
-    Last row: floor, fade, anxiety_relief (``n`` each), then :data:`SCALARS`. The rest offsets are
-    0, 1, ... and need only their number (:func:`layout`).
-    """
-    rows = [[*e.effect_low, *e.effect_width, *e.rest_fade, e.rest, e.drowsy, e.sleeps, 0.0] for e in effects]
-    rows.append([*tables.floor, *tables.fade, *tables.anxiety_relief, *(getattr(tables, k) for k in SCALARS)])
-    return np.array(rows, dtype=np.float32)
+
+def row_width(num_variables: int) -> int:
+    """The width of [`pack`][heartpole.kernel.pack]'s rows for ``num_variables`` variables: the wider of the
+    two tables' rows."""
+    (effects, effect_numbers), (tables, table_numbers) = WIDTHS
+    return max(effects * num_variables + effect_numbers, tables * num_variables + table_numbers)
+
+
+_row_width = njit(**JIT, **INLINE)(row_width)
+
+
+def pack_row(table: tuple[Any, ...], fields: model.TableFields) -> list[Any]:
+    """``table``'s numbers in its row's order: its PerVariable fields one after the other, then its Numbers."""
+    return [x for name in fields.per_variable for x in getattr(table, name)] + [
+        getattr(table, k) for k in fields.numbers
+    ]
+
+
+def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
+    """``effects`` and ``tables`` as one float32 array of `row_width` columns: a row per action (`EFFECTS`),
+    then a row for ``tables`` (`TABLES`), each padded with zeros. The rest offsets are 0, 1, ... and
+    need only their number ([`layout`][heartpole.kernel.layout])."""
+    width = row_width(len(tables.floor))
+    rows = [pack_row(e, EFFECTS) for e in effects] + [pack_row(tables, TABLES)]
+    return np.array([row + [0.0] * (width - len(row)) for row in rows], dtype=np.float32)
 
 
 def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple[tuple[None, ...], ...]:
@@ -287,27 +249,60 @@ def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple
     return ((None,) * num_variables, (None,) * num_rest_offsets, (None,) * num_actions)
 
 
-@njit(**JIT, **INLINE)
-def _take(values: Any, start: Any, zeros: Any) -> Any:
-    """``len(zeros)`` items of ``values`` (an array or a tuple) from ``start`` (unsigned) on, as a tuple."""
-    taken = zeros
-    for v in range(len(zeros)):
-        taken = tuple_setitem(taken, v, values[start + U64(v)])
-    return taken
+def _repeat(count: int) -> Any:
+    """A compiled ``repeat(value)``: the tuple of ``count`` copies of ``value`` (numba has no ``tuple * int``)."""
+    if count == 0:
+        return njit(**JIT, **INLINE)(lambda value: ())
+    rest = _repeat(count - 1)
+    return njit(**JIT, **INLINE)(lambda value: (value,) + rest(value))
+
+
+def _reader(table: type[tuple[Any, ...]], fields: model.TableFields, cell: Any) -> Any:
+    """A compiled ``read(source, start, zeros, shape)``: the ``table`` whose row (`pack_row`) starts at
+    ``start`` (unsigned), number ``j`` being ``cell(source, start + j)``, with ``shape`` as its Shape fields."""
+    per_variable, numbers = len(fields.per_variable), len(fields.numbers)
+    groups, scalars = _repeat(per_variable), _repeat(numbers)
+
+    @njit(**JIT, **INLINE)
+    def read(source: Any, start: Any, zeros: Any, shape: Any) -> Any:
+        n = U64(len(zeros))
+        rows = groups(zeros)
+        for k in range(per_variable):
+            row = zeros
+            for v in range(len(zeros)):
+                row = tuple_setitem(row, v, cell(source, start + U64(k) * n + U64(v)))
+            rows = tuple_setitem(rows, k, row)
+        values = scalars(zeros[0])
+        for k in range(numbers):
+            values = tuple_setitem(values, k, cell(source, start + U64(per_variable) * n + U64(k)))
+        return table(*(rows + values + shape))
+
+    return read
 
 
 @njit(**JIT, **INLINE)
-def action_effects(row: Any, start: Any, zeros: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` packed in ``row`` (an array) from ``start`` (unsigned)."""
-    n = U64(len(zeros))
-    return model.ActionEffects(
-        _take(row, start, zeros),
-        _take(row, start + n, zeros),
-        _take(row, start + U64(2) * n, zeros),
-        row[start + U64(3) * n],
-        row[start + U64(3) * n + U64(1)],
-        row[start + U64(3) * n + U64(2)],
-    )
+def _at(values: Any, index: Any) -> Any:
+    """``values[index]``: a table's numbers read from a row of `pack`'s array, or the action table."""
+    return values[index]
+
+
+@njit(**JIT, **INLINE)
+def _chosen(source: Any, column: Any) -> Any:
+    """The ``column`` of env's action's row of the action table, selected with masks (no gather).
+    ``source`` is ``(table, width, actions, action)``: the table, its row width, the layout's actions."""
+    table, width, actions, action = source
+    value = table[column]
+    for k in range(1, len(actions)):
+        value = where(action == k, table[U64(k) * width + column], value)
+    return value
+
+
+read_effects = _reader(model.ActionEffects, EFFECTS, _at)
+"""The [`ActionEffects`][heartpole.model.ActionEffects] in a row of `pack`'s array (or the action table)."""
+chosen_effects = _reader(model.ActionEffects, EFFECTS, _chosen)
+"""The [`ActionEffects`][heartpole.model.ActionEffects] of an env's action, selected with masks (`_chosen`)."""
+read_tables = _reader(model.StepTables, TABLES, _at)
+"""The [`StepTables`][heartpole.model.StepTables] in [`pack`][heartpole.kernel.pack]'s last row."""
 
 
 @njit(**JIT)
@@ -318,38 +313,23 @@ def _fixed(values: Any, like: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def _tables(packed: Any, zeros: Any, rest_offsets: Any) -> Any:
-    """The :class:`heartpole.model.StepTables` in :func:`pack`'s last row."""
-    n, last = U64(len(zeros)), packed[packed.shape[0] - 1]
-    return model.StepTables(
-        _take(last, U64(0), zeros),
-        _take(last, n, zeros),
-        _take(last, U64(2) * n, zeros),
-        rest_offsets,
-        last[U64(3) * n],
-        last[U64(3) * n + U64(1)],
-        last[U64(3) * n + U64(2)],
-        last[U64(3) * n + U64(3)],
-    )
-
-
-@njit(**JIT, **INLINE)
 def _unpack(packed: Any, layout: Any) -> Any:
-    """``(zeros, tables)`` from :func:`pack`'s array: a state of zeros and the
-    :class:`heartpole.model.StepTables`."""
+    """``(zeros, tables)`` from [`pack`][heartpole.kernel.pack]'s array: a state of zeros and the
+    [`StepTables`][heartpole.model.StepTables] (its rest offsets 0, 1, ... from the layout)."""
     zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
-    return zeros, _tables(packed, zeros, _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1]))
+    rest_offsets = _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1])
+    return zeros, read_tables(packed[packed.shape[0] - 1], U64(0), zeros, (rest_offsets,))
 
 
 STACK_TABLE_LIMIT = 4096
-"""Action tables of up to this many numbers (16 kB; HeartPole-v1's has 200) go on the stack."""
+"""Action tables of up to this many numbers (16 kB; HeartPole-v1's has 224) go on the stack."""
 
 
 @intrinsic
 def _stack_floats_intrinsic(typingctx: Any, actions: Any, zeros: Any) -> Any:
-    """A pointer to an action table's float32 (:func:`_action_table`) on the stack of the compiled function
-    that calls it: ``len(actions)`` rows of ``3 * len(zeros) + 4``."""
-    count = len(actions) * (3 * len(zeros) + 4)
+    """A pointer to an action table's float32 (`_action_table`) on the stack of the compiled function
+    that calls it: ``len(actions)`` rows of `row_width`."""
+    count = len(actions) * row_width(len(zeros))
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         return alloca_once(builder, context.get_value_type(nbtypes.float32), size=count)
@@ -363,13 +343,13 @@ _stack_floats: Any = _stack_floats_intrinsic
 
 @njit(**JIT, **INLINE)
 def _action_table(packed: Any, layout: Any, zeros: Any) -> Any:
-    """:func:`pack`'s action rows, one after the other, copied to a flat array on the caller's stack.
+    """[`pack`][heartpole.kernel.pack]'s action rows, one after the other, copied to a flat array on the caller's stack.
 
     The loop over envs reads each env's action effects from it. LLVM vectorises those reads only from
     memory it knows no written array overlaps, which the caller's stack is, and ``packed`` is not. A table
-    too large for the stack (:data:`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
+    too large for the stack (`STACK_TABLE_LIMIT`) goes on the heap: correct, slower.
     """
-    width = 3 * len(zeros) + 4
+    width = _row_width(len(zeros))  # known when compiling, as the branch below
     if len(layout[2]) * width <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
         table = carray(_stack_floats(layout[2], zeros), len(layout[2]) * width)
     else:
@@ -392,7 +372,7 @@ without AVX-512 ignore it. It is an attribute of the loop's own function, not a 
 
 @intrinsic
 def _wide_vectors_intrinsic(typingctx: Any) -> Any:
-    """Let LLVM vectorise the calling function :data:`VECTOR_WIDTH` bits wide (no code of its own)."""
+    """Let LLVM vectorise the calling function `VECTOR_WIDTH` bits wide (no code of its own)."""
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         # llvmlite knows only LLVM's keyword attributes; a string attribute goes into the set as written
@@ -407,38 +387,6 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _wide_vectors = lambda: None  # noqa: E731
 
 
-@njit(**JIT, **INLINE)
-def _chosen(table: Any, column: Any, layout: Any, zeros: Any, action: Any) -> Any:
-    """The ``column`` of ``action``'s row of the action table, selected with masks (no gather)."""
-    width = 3 * len(zeros) + 4
-    value = table[U64(column)]
-    for k in range(1, len(layout[2])):
-        value = where(action == k, table[U64(k * width + column)], value)
-    return value
-
-
-@njit(**JIT, **INLINE)
-def _chosen_tuple(table: Any, start: Any, layout: Any, zeros: Any, action: Any) -> Any:
-    values = zeros
-    for v in range(len(zeros)):
-        values = tuple_setitem(values, v, _chosen(table, start + v, layout, zeros, action))
-    return values
-
-
-@njit(**JIT, **INLINE)
-def chosen_effects(table: Any, layout: Any, zeros: Any, action: Any) -> Any:
-    """The :class:`heartpole.model.ActionEffects` of ``action`` from the action table, selected with masks."""
-    n = len(zeros)
-    return model.ActionEffects(
-        _chosen_tuple(table, 0, layout, zeros, action),
-        _chosen_tuple(table, n, layout, zeros, action),
-        _chosen_tuple(table, 2 * n, layout, zeros, action),
-        _chosen(table, 3 * n, layout, zeros, action),
-        _chosen(table, 3 * n + 1, layout, zeros, action),
-        _chosen(table, 3 * n + 2, layout, zeros, action),
-    )
-
-
 SELECTED_ACTIONS = 4
 """Up to this many actions, the loop over envs selects each env's action effects with masks; with more, it
 reads them from the action table with gathers (the masks grow with the actions, and outgrow the registers).
@@ -448,34 +396,28 @@ with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
 
 # ---------------------------------------------------------------------------------------------------------
 # The loops over envs. Array indices are unsigned: numba then skips its negative-index wraparound, which
-# hides the addresses from LLVM's vectoriser.
-@njit(**JIT)
-def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
-    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
-    ``results[k][i]``, a tuple of arrays in :data:`OUTPUTS` order (:func:`new_results`).
-
-    The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
-    Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
-    ``packed`` and ``layout`` are :func:`pack`'s and :func:`layout`'s.
-    """
+# hides the addresses from LLVM's vectoriser. The single env is env 0 of a loop over one env: one compiled
+# definition, so the two agree bit for bit.
+@njit(**JIT, **INLINE)
+def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     _wide_vectors()
-    zeros, t = _unpack(packed, layout)
-    n = len(zeros)
-    table, width = _action_table(packed, layout, zeros), U64(3 * n + 4)
+    zeros, tables = _unpack(packed, layout)
+    table, width = _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
     selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
-        s = zeros
-        for v in range(n):
-            s = tuple_setitem(s, v, envs[U64(v), i])
-        u = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
+        state = zeros
+        for v in range(len(zeros)):
+            state = tuple_setitem(state, v, envs[U64(v), i])
+        uniforms = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
         if selected:
-            effects = chosen_effects(table, layout, zeros, actions[i])
+            effects = chosen_effects((table, width, layout[2], actions[i]), U64(0), zeros, ())
         else:
-            effects = action_effects(table, U64(actions[i]) * width, zeros)
-        s, reward, worked, risk, attack, new_score = _step(s, effects, u, t)
-        for v in range(n):
-            envs[U64(v), i] = stored(v, s[v])
+            effects = read_effects(table, U64(actions[i]) * width, zeros, ())
+        state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
+        for v in range(len(zeros)):
+            envs[U64(v), i] = stored(v, state[v])
         rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
         results[0][i] = reward
         results[1][i] = worked
@@ -485,44 +427,73 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
 
 
 @njit(**JIT)
-def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
-    """Step one env (the single env's path): its ``state`` (a float32 array) in place, with ``action``.
+def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
+    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order (`new_results`).
 
-    The same step and the same draws as an env of :func:`step_envs`, without the loop (``layout`` needs
-    only its first two tuples). Returns
-    ``(reward, productivity, heart_attack_risk, heart_attack, score)``.
+    The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
+    Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
+    ``packed`` and ``layout`` are [`pack`][heartpole.kernel.pack]'s and [`layout`][heartpole.kernel.layout]'s.
     """
-    zeros = _fixed(np.zeros(len(layout[0]), dtype=np.float32), layout[0])
-    rest_offsets = _fixed(np.arange(len(layout[1])).astype(np.float32), layout[1])
-    t = _tables(packed, zeros, rest_offsets)
-    s = _take(state, U64(0), zeros)
-    u = draws(rng[KEY_LOW], rng[KEY_HIGH], rng[COUNTER], zeros)
-    s, reward, worked, risk, attack, new_score = _step(s, action_effects(packed[action], U64(0), zeros), u, t)
-    for v in range(len(zeros)):
-        state[v] = stored(v, s[v])
-    rng[COUNTER] = add32(rng[COUNTER], U32(1))
-    return reward, worked, risk, attack, new_score
+    _step_envs(envs, results, actions, rng, packed, layout)
+
+
+@intrinsic
+def _on_the_stack_intrinsic(typingctx: Any, value: Any) -> Any:
+    """A pointer to room for one ``value`` on the stack of the compiled function that calls it."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return alloca_once(builder, context.get_data_type(value))
+
+    pointer: Any = nbtypes.CPointer
+    return pointer(value)(value), codegen
+
+
+_on_the_stack: Any = _on_the_stack_intrinsic
+
+
+@njit(**JIT, **INLINE)
+def _one(value: Any) -> Any:
+    """A one-item array holding ``value``, on the caller's stack (no allocation)."""
+    array = carray(_on_the_stack(value), 1)
+    array[0] = value
+    return array
+
+
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    _one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
+
+
+@njit(**JIT)
+def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
+    """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
+    ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
+    loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
+    results = (_one(F32(0.0)), _one(F32(0.0)), _one(F32(0.0)), _one(False), _one(F32(0.0)))
+    _step_envs(envs, results, _one(ACTION_DTYPE(action)), rng, packed, layout)
+    return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 
 @njit(**JIT)
 def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> None:
     """Start env ``i`` afresh wherever ``which[i]``: every variable 0, then waking up with one draw."""
-    zeros, t = _unpack(packed, layout)
+    zeros, tables = _unpack(packed, layout)
     wake = len(zeros)  # the wake-up uniform of a draw, as in a step
     for i in range(which.shape[0]):
         if which[i]:
             u = uniform(rng[KEY_LOW, i], rng[KEY_HIGH, i], rng[COUNTER, i], wake)
-            s = _initial_state(zeros, u, t)
+            state = _initial_state(zeros, u, tables)
             for v in range(len(zeros)):
-                envs[v, i] = s[v]
+                envs[v, i] = state[v]
             rng[COUNTER, i] = add32(rng[COUNTER, i], U32(1))
 
 
+cache_keyed_on(model, step_envs, step_one, reset_envs)  # they inline model's step: its edits recompile them
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one
 
-    def step_one(state: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:  # type: ignore[misc]  # noqa: F811
-        """:func:`step_one` run as plain Python, its results as Python numbers."""
-        reward, worked, risk, attack, new_score = _python_step_one(state, action, rng, packed, layout)
+    def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:  # type: ignore[misc]  # noqa: F811
+        """[`step_one`][heartpole.kernel.step_one] run as plain Python, its results as Python numbers."""
+        reward, worked, risk, attack, new_score = _python_step_one(envs, action, rng, packed, layout)
         return float(reward), float(worked), float(risk), bool(attack), float(new_score)

@@ -4,7 +4,7 @@ Everything here is plain arithmetic on one person's state, in the tutorial's ord
 and constants. The functions take Python or NumPy numbers (a NumPy array gives the curve over many
 values, as in the tutorial's plots). Three things are *bound by the backend* that runs them:
 ``exp``, ``where`` (a branch-free ``a if condition else b``) and ``replace`` (a tuple with one item
-changed). :mod:`heartpole.kernel` compiles this very code with numba, in float32, with its own
+changed). [`heartpole.kernel`][heartpole.kernel] compiles this very code with numba, in float32, with its own
 ``exp``; the JAX env traces it with ``jax.numpy``'s. No formula is written anywhere else.
 
 Time is counted in half-hours. A state is a tuple of floats in observation order (``ALERTNESS`` ...
@@ -17,7 +17,7 @@ import math
 import types
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, NamedTuple, TypeGuard
+from typing import Annotated, Any, Literal, NamedTuple, get_type_hints
 
 import numpy as np
 from numpy import where
@@ -81,7 +81,7 @@ def ballmer(intoxication: Number) -> Number:
 def productivity(alertness: Number, intoxication: Number, calm: Number = 0.0) -> Number:
     """Facts 7 and 8: work done in one half-hour, ``alertness * (1 - crippling_anxiety) * ballmer``.
 
-    ``calm`` is anxiety relief (HeartPole-v1's THC; see :attr:`Variable.anxiety_relief`): anxiety sets in
+    ``calm`` is anxiety relief (HeartPole-v1's THC; see `Variable.anxiety_relief`): anxiety sets in
     ``calm`` units of alertness later, ``crippling_anxiety(alertness - calm)``. v0 has none.
     """
     return alertness * (1.0 - crippling_anxiety(alertness - calm)) * ballmer(intoxication)
@@ -92,14 +92,22 @@ def score(work_done: Number, time_elapsed: Number) -> Number:
     return work_done / where(time_elapsed > 1.0, time_elapsed, 1.0)
 
 
-def wake_alertness(uniform: Number, t: StepTables) -> Number:
+def wake_alertness(uniform: Number, tables: StepTables) -> Number:
     """Fact 1: after a good night's sleep you wake up quite alert, uniformly in ``Params.wake_alertness``."""
-    return t.wake_low + t.wake_width * uniform
+    return tables.wake_low + tables.wake_width * uniform
 
 
-def initial_state(zeros: State, uniform: Number, t: StepTables) -> State:
+def initial_state(zeros: State, uniform: Number, tables: StepTables) -> State:
     """Facts 0 and 1: every variable at 0, then waking up (``uniform`` is a draw in [0, 1))."""
-    return replace(zeros, ALERTNESS, wake_alertness(uniform, t))
+    return replace(zeros, ALERTNESS, wake_alertness(uniform, tables))
+
+
+PerVariable = Annotated[tuple[Number, ...], "one number per state variable"]
+"""A field of [`ActionEffects`][heartpole.model.ActionEffects] or [`StepTables`][heartpole.model.StepTables]
+with one number per state variable, in observation order."""
+Shape = Annotated[tuple[Number, ...], "its length shapes the step's loops"]
+"""A field of [`StepTables`][heartpole.model.StepTables] whose length, not its numbers, a backend fixes when it
+compiles or traces the step (JAX keeps it out of its parameters)."""
 
 
 class ActionEffects(NamedTuple):
@@ -107,102 +115,142 @@ class ActionEffects(NamedTuple):
 
     The action adds ``effect_low[v] + effect_width[v] * u`` to variable ``v``; then ``rest`` half-hours
     pass without work, the first ``drowsy`` of them awake, after which ``rest_fade[v]`` of ``v`` is left;
-    ``sleeps`` (1 or 0) ends the rest by waking up. Built by :class:`heartpole.dynamics.Dynamics`.
+    ``sleeps`` (1 or 0) ends the rest by waking up. Built by [`Dynamics`][heartpole.dynamics.Dynamics].
+
+    Its fields are the one definition of these numbers: the kernel's packed rows and the JAX env's
+    parameters are laid out from them ([`table_fields`][heartpole.model.table_fields]).
     """
 
-    effect_low: tuple[Number, ...]
-    effect_width: tuple[Number, ...]
-    rest_fade: tuple[Number, ...]
+    effect_low: PerVariable
+    effect_width: PerVariable
+    rest_fade: PerVariable
     rest: Number
     drowsy: Number
     sleeps: Number
 
 
 class StepTables(NamedTuple):
-    """What a variant's variables and parameters mean to :func:`step`, as numbers.
+    """What a variant's variables and parameters mean to [`step`][heartpole.model.step], as numbers.
 
     Per variable ``v``: its lower bound ``floor[v]``, its share left after a half-hour ``fade[v]`` and
     its ``anxiety_relief[v]``. ``rest_offsets`` are 0, 1, ... up to the longest drowsy rest of the
-    variant's actions (none for v0). Built by :class:`heartpole.dynamics.Dynamics`.
+    variant's actions (none for v0). Built by [`Dynamics`][heartpole.dynamics.Dynamics].
+
+    Its fields are the one definition of these numbers, as [`ActionEffects`][heartpole.model.ActionEffects]'.
+    A number the step needs from [`Params`][heartpole.model.Params] is a field here, set in
+    `heartpole.dynamics.step_tables`: the backends lay it out from here.
     """
 
-    floor: tuple[Number, ...]
-    fade: tuple[Number, ...]
-    anxiety_relief: tuple[Number, ...]
-    rest_offsets: tuple[Number, ...]
+    floor: PerVariable
+    fade: PerVariable
+    anxiety_relief: PerVariable
     heart_attack_proclivity: Number
     heart_attack_penalty: Number
     wake_low: Number
     wake_width: Number
+    rest_offsets: Shape
+
+
+class TableFields(NamedTuple):
+    """The fields of a table ([`ActionEffects`][heartpole.model.ActionEffects] or
+    [`StepTables`][heartpole.model.StepTables]) by kind, each in definition order."""
+
+    per_variable: tuple[str, ...]
+    numbers: tuple[str, ...]
+    shape: tuple[str, ...]
+
+
+def table_fields(table: type[tuple[Any, ...]]) -> TableFields:
+    """The fields of ``table`` by their annotation: ``PerVariable``, ``Number`` or ``Shape``.
+
+    The backends build a table from its numbers in this order (``table(*per_variable, *numbers, *shape)``),
+    so the fields must be declared in it; ``TypeError`` names a table declared otherwise.
+    """
+    hints = get_type_hints(table, include_extras=True)
+    kinds = {PerVariable: "per_variable", Number: "numbers", Shape: "shape"}
+    grouped: dict[str, list[str]] = {kind: [] for kind in kinds.values()}
+    order = []
+    for name in table._fields:  # type: ignore[attr-defined]
+        kind = kinds.get(hints[name])
+        if kind is None:
+            raise TypeError(f"{table.__name__}.{name} must be annotated PerVariable, Number or Shape")
+        grouped[kind].append(name)
+        order.append(list(kinds.values()).index(kind))
+    if order != sorted(order):
+        raise TypeError(
+            f"{table.__name__} must declare its PerVariable fields first, then its Number fields, then its Shape "
+            f"fields; got {list(table._fields)}"  # type: ignore[attr-defined]
+        )
+    return TableFields(*(tuple(grouped[kind]) for kind in kinds.values()))
 
 
 def step(
-    s: State, a: ActionEffects, u: Sequence[Number], t: StepTables
+    state: State, effects: ActionEffects, uniforms: Sequence[Number], tables: StepTables
 ) -> tuple[State, Number, Number, Number, Any, Number]:
     """One decision and the half-hour of work after it: the tutorial's ``HeartPole.step`` for one person.
 
     Args:
-        s: the state before the step.
-        a: what the chosen action does (:class:`ActionEffects`).
-        u: ``len(s) + 2`` uniform draws in [0, 1): one per variable for the action's effect on it, one for
-            waking up, one for the heart-attack coin.
-        t: the variant's variables and parameters (:class:`StepTables`).
+        state: the state before the step.
+        effects: what the chosen action does ([`ActionEffects`][heartpole.model.ActionEffects]).
+        uniforms: ``len(state) + 2`` uniform draws in [0, 1): one per variable for the action's effect on
+            it, one for waking up, one for the heart-attack coin.
+        tables: the variant's variables and parameters ([`StepTables`][heartpole.model.StepTables]).
 
     Returns:
         ``(state, reward, productivity, heart_attack_risk, heart_attack, score)`` after the step.
     """
-    old_score = score(s[WORK_DONE], s[TIME_ELAPSED])
-    n = len(s)
+    old_score = score(state[WORK_DONE], state[TIME_ELAPSED])
+    variables = range(len(state))
 
     # Facts 2 and 3 (and any variant's actions): each effect adds a uniform amount in [low, high].
     # No variable goes below its lower bound (exercise cannot push blood pressure under 0).
-    for v in range(n):
+    for v in variables:
         if kept_by_the_step(v):
             continue
-        changed = s[v] + a.effect_low[v] + a.effect_width[v] * u[v]
-        s = replace(s, v, where(changed < t.floor[v], t.floor[v], changed))
+        changed = state[v] + effects.effect_low[v] + effects.effect_width[v] * uniforms[v]
+        state = replace(state, v, where(changed < tables.floor[v], tables.floor[v], changed))
 
     # Rest and sleep: half-hours without work. Alertness drains in those spent awake (fact 6);
     # blood pressure and alcohol fade through all of them (fact 5).
     drain: Number = 0.0
-    for offset in t.rest_offsets:
-        drain += where(offset < a.drowsy, alertness_decay(s[TIME_SINCE_SLEPT] + offset), 0.0)
-    s = replace(s, ALERTNESS, s[ALERTNESS] - drain)
-    for v in range(n):
+    for offset in tables.rest_offsets:
+        drain += where(offset < effects.drowsy, alertness_decay(state[TIME_SINCE_SLEPT] + offset), 0.0)
+    state = replace(state, ALERTNESS, state[ALERTNESS] - drain)
+    for v in variables:
         if not kept_by_the_step(v):
-            s = replace(s, v, s[v] * a.rest_fade[v])
-    s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + a.rest)
-    s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + a.rest)
+            state = replace(state, v, state[v] * effects.rest_fade[v])
+    state = replace(state, TIME_SINCE_SLEPT, state[TIME_SINCE_SLEPT] + effects.rest)
+    state = replace(state, TIME_ELAPSED, state[TIME_ELAPSED] + effects.rest)
 
     # Fact 1: after sleep you wake up quite alert, and the day starts afresh.
-    sleeps = a.sleeps > 0.5
-    s = replace(s, ALERTNESS, where(sleeps, wake_alertness(u[n], t), s[ALERTNESS]))
-    s = replace(s, TIME_SINCE_SLEPT, where(sleeps, 0.0, s[TIME_SINCE_SLEPT]))
+    sleeps = effects.sleeps > 0.5
+    state = replace(state, ALERTNESS, where(sleeps, wake_alertness(uniforms[len(state)], tables), state[ALERTNESS]))
+    state = replace(state, TIME_SINCE_SLEPT, where(sleeps, 0.0, state[TIME_SINCE_SLEPT]))
 
     # Facts 7 and 8: a half-hour of work.
     calm = 0.0
-    for v in range(n):
+    for v in variables:
         if not kept_by_the_step(v):
-            calm += t.anxiety_relief[v] * s[v]
-    worked = productivity(s[ALERTNESS], s[INTOXICATION], calm)
-    s = replace(s, WORK_DONE, s[WORK_DONE] + worked)
+            calm += tables.anxiety_relief[v] * state[v]
+    worked = productivity(state[ALERTNESS], state[INTOXICATION], calm)
+    state = replace(state, WORK_DONE, state[WORK_DONE] + worked)
 
     # Facts 5 and 6: the half-hour passes.
-    s = replace(s, ALERTNESS, s[ALERTNESS] - alertness_decay(s[TIME_SINCE_SLEPT]))
-    for v in range(n):
+    state = replace(state, ALERTNESS, state[ALERTNESS] - alertness_decay(state[TIME_SINCE_SLEPT]))
+    for v in variables:
         if not kept_by_the_step(v):
-            s = replace(s, v, s[v] * t.fade[v])
-    s = replace(s, TIME_SINCE_SLEPT, s[TIME_SINCE_SLEPT] + 1.0)
-    s = replace(s, TIME_ELAPSED, s[TIME_ELAPSED] + 1.0)
+            state = replace(state, v, state[v] * tables.fade[v])
+    state = replace(state, TIME_SINCE_SLEPT, state[TIME_SINCE_SLEPT] + 1.0)
+    state = replace(state, TIME_ELAPSED, state[TIME_ELAPSED] + 1.0)
 
     # The reward: the change of the score, and -100 for a heart attack (fact 4), which, like purgatory,
     # is painful but cleansing: blood pressure back to 0.
-    new_score = score(s[WORK_DONE], s[TIME_ELAPSED])
-    risk = heart_attack_risk(s[HYPERTENSION], t.heart_attack_proclivity)
-    attack = u[n + 1] < risk
-    s = replace(s, HYPERTENSION, where(attack, 0.0, s[HYPERTENSION]))
-    reward = new_score - old_score - where(attack, t.heart_attack_penalty, 0.0)
-    return s, reward, worked, risk, attack, new_score
+    new_score = score(state[WORK_DONE], state[TIME_ELAPSED])
+    risk = heart_attack_risk(state[HYPERTENSION], tables.heart_attack_proclivity)
+    attack = uniforms[len(state) + 1] < risk
+    state = replace(state, HYPERTENSION, where(attack, 0.0, state[HYPERTENSION]))
+    reward = new_score - old_score - where(attack, tables.heart_attack_penalty, 0.0)
+    return state, reward, worked, risk, attack, new_score
 
 
 @dataclass(frozen=True)
@@ -226,29 +274,46 @@ class Params:
     wake_alertness: tuple[float, float] = (0.7, 1.3)
 
     def __post_init__(self) -> None:
-        _check_number("heart_attack_proclivity", self.heart_attack_proclivity, 0.0, 1.0)
+        check_number("heart_attack_proclivity", self.heart_attack_proclivity, 0.0, 1.0)
         check_integer("max_steps", self.max_steps, 1)
-        _check_number("decay_rate", self.decay_rate, 0.0, 1.0, low_open=True)
+        check_number("decay_rate", self.decay_rate, 0.0, 1.0, low_open=True)
         check_integer("sleep_half_hours", self.sleep_half_hours, 0)
-        _check_number("heart_attack_penalty", self.heart_attack_penalty, 0.0, math.inf)
-        low, high = _pair("wake_alertness", self.wake_alertness)
+        check_number("heart_attack_penalty", self.heart_attack_penalty, 0.0, math.inf)
+        low, high = check_pair("wake_alertness", self.wake_alertness)
         if not low <= high:
             raise ValueError(f"wake_alertness must be (low, high) with low <= high, got {self.wake_alertness!r}")
 
 
-def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> None:
-    in_range = (
-        is_number(value) and math.isfinite(value) and (low < value if low_open else low <= value) and value <= high
-    )
-    if not in_range:
-        bracket = "(" if low_open else "["
-        raise ValueError(f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}")
-
-
-def is_number(value: object) -> TypeGuard[float]:
-    """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool (typed as ``float``, which
-    NumPy's scalars stand in for)."""
+def is_number(value: object) -> bool:
+    """Whether ``value`` is a real number: a Python or NumPy int or float, not a bool."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_number(
+    name: str,
+    value: Any,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    finite: bool = True,
+) -> float:
+    """``value`` as a float, or ``ValueError`` naming ``name`` unless it is a number (not a bool), finite unless
+    ``finite`` is false (NaN never passes), in [low, high] (``(low, high]`` with ``low_open``)."""
+    in_range = is_number(value) and (low < value if low_open else low <= value) and value <= high
+    if not in_range or (finite and not math.isfinite(value)):
+        kind = "a finite number" if finite else "a number (or +-math.inf)"
+        bracket = "(" if low_open else "["
+        interval = f" in {bracket}{low}, {high}]" if math.isfinite(low) or math.isfinite(high) else ""
+        raise ValueError(f"{name} must be {kind}{interval}, got {value!r}")
+    return float(value)
+
+
+def check_pair(name: str, value: Any) -> tuple[float, float]:
+    """``value`` as a ``(low, high)`` pair of finite numbers, or ``ValueError`` naming ``name``."""
+    if not (isinstance(value, (tuple, list)) and len(value) == 2):
+        raise ValueError(f"{name} must be a (low, high) pair of numbers, got {value!r}")
+    return check_number(name, value[0]), check_number(name, value[1])
 
 
 def check_keywords(function: str, given: Iterable[str], accepted: Iterable[str]) -> None:
@@ -267,18 +332,10 @@ def check_keywords(function: str, given: Iterable[str], accepted: Iterable[str])
 
 
 def check_integer(name: str, value: Any, minimum: int) -> int:
-    """``value`` as an int, or ``ValueError`` naming ``name`` unless it is an integer >= ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+    """``value`` as an int, or ``ValueError`` naming ``name`` unless it is an integer (not a bool) >= ``minimum``."""
+    if not (is_number(value) and isinstance(value, (int, np.integer)) and value >= minimum):
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
-
-
-def _pair(name: str, value: Any) -> tuple[float, float]:
-    if not (isinstance(value, (tuple, list)) and len(value) == 2):
-        raise ValueError(f"{name} must be a (low, high) pair of numbers, got {value!r}")
-    for item in value:
-        _check_number(name, item, -math.inf, math.inf)
-    return float(value[0]), float(value[1])
 
 
 @dataclass(frozen=True)
@@ -309,9 +366,7 @@ class Variable:
             raise ValueError(f"a variable name must be an identifier such as 'stress', got {self.name!r}")
         where = f"variable {self.name!r}"
         for bound in ("low", "high"):
-            value = getattr(self, bound)
-            if not is_number(value) or math.isnan(value):
-                raise ValueError(f"{where}: {bound} must be a number (or +-math.inf), got {value!r}")
+            check_number(f"{where}: {bound}", getattr(self, bound), finite=False)
         if not self.low <= 0.0 <= self.high:
             raise ValueError(
                 f"{where}: every variable starts at 0, so low <= 0 <= high is needed; got [{self.low}, {self.high}]"
@@ -322,8 +377,7 @@ class Variable:
                 f"{where}: decay must be None (no fading), 'params' (fades like hypertension) or the share left "
                 f"after a half-hour, in (0, 1]; got {self.decay!r}"
             )
-        if not is_number(self.anxiety_relief) or not math.isfinite(self.anxiety_relief):
-            raise ValueError(f"{where}: anxiety_relief must be a finite number, got {self.anxiety_relief!r}")
+        check_number(f"{where}: anxiety_relief", self.anxiety_relief)
         if not isinstance(self.description, str):
             raise ValueError(f"{where}: description must be a string, got {self.description!r}")
 
@@ -342,6 +396,11 @@ V0_VARIABLES: tuple[Variable, ...] = (
 )
 
 
+BOOKKEEPING: tuple[str, ...] = tuple(v.name for i, v in enumerate(V0_VARIABLES) if kept_by_the_step(i))
+"""The names of the variables the step keeps itself ([`kept_by_the_step`][heartpole.model.kept_by_the_step]):
+no action may write to them."""
+
+
 def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:
     """The names of ``variables``, in observation order."""
     return tuple(v.name for v in variables)
@@ -349,21 +408,48 @@ def variable_names(variables: Sequence[Variable]) -> tuple[str, ...]:
 
 # ---------------------------------------------------------------------------------------------------------
 # Running this module's code on another backend
-FUNCTIONS = (
-    "kept_by_the_step",
-    "sigmoid",
-    "gaussian",
-    "heart_attack_risk",
-    "alertness_decay",
-    "crippling_anxiety",
-    "ballmer",
-    "productivity",
-    "score",
-    "wake_alertness",
-    "initial_state",
-    "step",
-)
-"""The functions that make the step, in the order they call each other (callees first)."""
+BACKEND_BOUND = ("exp", "where", "replace")
+"""The operations every backend binds its own way (NumPy's here)."""
+STEP_ROOTS = ("step", "initial_state", "kept_by_the_step")
+"""The functions a backend runs: the step, the start of an episode and which variables the step keeps."""
+
+
+def called_by(roots: Iterable[str], namespace: dict[str, Any]) -> tuple[str, ...]:
+    """The functions of this module in ``namespace`` that ``roots`` call, directly or not, and the roots,
+    callees first.
+
+    Read from their code (the global names it loads, inner code included), so a helper added here and called
+    from [`step`][heartpole.model.step] is found without being listed anywhere.
+    """
+    seen: set[str] = set()
+    found: list[str] = []
+
+    def visit(name: str) -> None:
+        function = namespace.get(name)
+        if name in seen or name in BACKEND_BOUND or not isinstance(function, types.FunctionType):
+            return
+        if function.__module__ != namespace["__name__"]:  # another module's function: not code to rebind
+            return
+        seen.add(name)
+        for callee in _loaded_names(function.__code__):
+            visit(callee)
+        found.append(name)
+
+    for root in roots:
+        visit(root)
+    return tuple(found)
+
+
+def _loaded_names(code: types.CodeType) -> list[str]:
+    names = list(code.co_names)
+    for constant in code.co_consts:
+        if isinstance(constant, types.CodeType):
+            names += _loaded_names(constant)
+    return names
+
+
+FUNCTIONS = called_by(STEP_ROOTS, globals())
+"""The functions that make the step, callees first: found from [`step`][heartpole.model.step]'s own code."""
 
 
 def rebind(
@@ -371,7 +457,8 @@ def rebind(
     constant: Callable[[Any], Any] = lambda value: value,
     wrap: Callable[[Callable[..., Any]], Any] = lambda function: function,
 ) -> types.SimpleNamespace:
-    """:data:`FUNCTIONS` with this module's very code objects, run against another backend.
+    """[`FUNCTIONS`][heartpole.model.FUNCTIONS] with this module's very code objects, run against another
+    backend.
 
     Args:
         bindings: replacements for ``exp``, ``where`` and ``replace`` (the backend's operations).
@@ -381,12 +468,15 @@ def rebind(
     Returns:
         The functions by name; each calls the others' rebound versions.
     """
+    missing = [name for name in BACKEND_BOUND if name not in bindings]
+    if missing:
+        raise ValueError(f"rebind needs the backend's {missing}; it binds {list(BACKEND_BOUND)}")
     namespace: dict[str, Any] = {**globals(), **bindings}
     for name in FUNCTIONS:
-        source = globals()[name]
-        code = source.__code__
+        function = globals()[name]
+        code = function.__code__
         code = code.replace(co_consts=tuple(constant(c) if type(c) is float else c for c in code.co_consts))
-        function = types.FunctionType(code, namespace, name, source.__defaults__)
-        function.__qualname__, function.__module__ = source.__qualname__, source.__module__
-        namespace[name] = wrap(function)
+        rebound = types.FunctionType(code, namespace, name, function.__defaults__)
+        rebound.__qualname__, rebound.__module__ = function.__qualname__, function.__module__
+        namespace[name] = wrap(rebound)
     return types.SimpleNamespace(**{name: namespace[name] for name in FUNCTIONS})

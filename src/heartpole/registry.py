@@ -20,7 +20,6 @@ that says what is wrong and what is accepted, never in the middle of an episode.
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from collections.abc import Iterator, Mapping, Sequence
@@ -31,8 +30,8 @@ from typing import Any
 import gymnasium as gym
 from gymnasium.envs.registration import EnvSpec, parse_env_id
 
-from heartpole.actions import V0_ACTIONS, Action, as_action
-from heartpole.dynamics import BOOKKEEPING, Dynamics
+from heartpole.actions import V0_ACTIONS, V1_ACTIONS, V1_VARIABLES, Action, as_action
+from heartpole.dynamics import Dynamics
 from heartpole.env import build_dynamics
 from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords
 from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
@@ -45,18 +44,21 @@ BUILTIN_IDS = (V0_ID, V1_ID)
 
 ENTRY_POINT = "heartpole.env:HeartPole"
 VECTOR_ENTRY_POINT = "heartpole.vector:HeartPoleVectorEnv"
-_BUILTINS = {
-    V0_ID: (ENTRY_POINT, VECTOR_ENTRY_POINT),
-    V1_ID: ("heartpole.variants:HeartPoleV1", "heartpole.variants:HeartPoleV1VectorEnv"),
+_BUILTINS: dict[str, dict[str, Any]] = {
+    V0_ID: {"entry_points": (ENTRY_POINT, VECTOR_ENTRY_POINT)},
+    V1_ID: {
+        "actions": V1_ACTIONS,
+        "variables": V1_VARIABLES,
+        # v1's own classes carry its manual, bind its actions and variables and refuse others; nothing more
+        "entry_points": ("heartpole.variants:HeartPoleV1", "heartpole.variants:HeartPoleV1VectorEnv"),
+    },
 }
+"""HeartPole's own variants, defined as users define theirs (`define_variant`)."""
 RESERVED_NAME = "HeartPole"
 """HeartPole's own name: ``HeartPole-vN`` ids are HeartPole's versions, never users' variants."""
 
 BUILTIN_REWARD_THRESHOLDS = {V0_ID: V0_BAR.reward_threshold, V1_ID: V1_BAR.reward_threshold}
 """The reward thresholds of v0's and v1's specs, from their bars in [`heartpole.solved`][heartpole.solved]."""
-
-MAX_REST_HALF_HOURS = 48
-"""The longest rest an action may take (a day): each rest half-hour is computed every step."""
 
 # Gymnasium's id grammar ``[namespace/]name-vN``, with the version required and written without leading
 # zeros (Gymnasium reads "-v01" as version 1 and would register the variant as "...-v1").
@@ -89,15 +91,9 @@ def register_envs() -> None:
     offers no per-id way to say so, and a package must not change the process's warning filters, so the
     notice stands (silence it in your own code if you wish; see the README).
     """
-    for env_id, (entry_point, vector_entry_point) in _BUILTINS.items():
+    for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
-            gym.register(
-                id=env_id,
-                entry_point=entry_point,
-                vector_entry_point=vector_entry_point,
-                max_episode_steps=Params.max_steps,
-                reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id],
-            )
+            define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
 
 
 def solved_bar(dynamics: Dynamics) -> SolvedBar:
@@ -153,34 +149,59 @@ def register_variant(
     (Discrete(5), 'drink_tea')
     """
     _check_id(id, replace)
-    model_params = _params(params)
+    spec = define_variant(id, actions, variables, _params(params))
+    _variants.add(id)
+    return spec
+
+
+def define_variant(
+    env_id: str,
+    actions: Sequence[Action | Mapping[str, Any]] | None = None,
+    variables: Sequence[Variable | Mapping[str, Any]] | None = None,
+    params: Mapping[str, Any] | None = None,
+    *,
+    entry_points: tuple[str, str] | None = None,
+    reward_threshold: float | None = None,
+) -> EnvSpec:
+    """Check a variant's definition by building its [`Dynamics`][heartpole.dynamics.Dynamics] and register it:
+    the one path of every variant, HeartPole's own v0 and v1 and users' (through
+    `register_variant`, which checks their ids first).
+
+    The spec's kwargs are the actions, the variables and ``params``, for the env constructors
+    (``entry_points`` ``None``: ``heartpole.env:HeartPole`` and ``heartpole.vector:HeartPoleVectorEnv``), or
+    ``params`` only for a variant's own constructors, which bind its actions and variables (v1's, whose spec
+    so stays plain data). ``reward_threshold`` defaults to the variant's
+    `solved_bar`. Raises ``ValueError`` naming the id on a bad definition,
+    leaving the registry as it was.
+    """
+    model_params = dict(params or {})
     try:
         action_set = _actions(actions)
         variable_set = _variables(variables)
-        _check_effects(action_set, variable_set)
         proclivity = model_params.pop("heart_attack_proclivity", Params.heart_attack_proclivity)
         max_steps = model_params.pop("max_steps", Params.max_steps)
         # The env's own constructor path: what passes here builds every env of the variant.
         dynamics = build_dynamics(proclivity, max_steps, action_set, variable_set, model_params)
     except ValueError as error:
-        raise ValueError(f"HeartPole variant {id!r}: {error}") from None
-    kwargs: dict[str, Any] = {"actions": action_set, "variables": variable_set, **params}
-    replaced = gym.registry.pop(id, None)  # only a variant of ours, when replacing
+        raise ValueError(f"HeartPole variant {env_id!r}: {error}") from None
+    kwargs: dict[str, Any] = {**({"actions": action_set, "variables": variable_set} if entry_points is None else {})}
+    kwargs.update(params or {})
+    entry_point, vector_entry_point = entry_points or (ENTRY_POINT, VECTOR_ENTRY_POINT)
+    replaced = gym.registry.pop(env_id, None)  # only a variant of ours, when replacing
     try:
         gym.register(
-            id=id,
-            entry_point=ENTRY_POINT,
-            vector_entry_point=VECTOR_ENTRY_POINT,
+            id=env_id,
+            entry_point=entry_point,
+            vector_entry_point=vector_entry_point,
             kwargs=kwargs,
             max_episode_steps=int(max_steps),
-            reward_threshold=solved_bar(dynamics).reward_threshold,
+            reward_threshold=solved_bar(dynamics).reward_threshold if reward_threshold is None else reward_threshold,
         )
     except gym.error.Error as error:  # Gymnasium's own version rules, e.g. "Name" and "Name-v0" together
         if replaced is not None:
-            gym.registry[id] = replaced
-        raise ValueError(f"HeartPole variant {id!r}: {error}") from None
-    _variants.add(id)
-    return gym.spec(id)
+            gym.registry[env_id] = replaced
+        raise ValueError(f"HeartPole variant {env_id!r}: {error}") from None
+    return gym.spec(env_id)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -220,14 +241,7 @@ def _actions(actions: object) -> tuple[Action, ...]:
             "actions must be a list of heartpole.Action objects (or mappings of their fields), e.g. "
             f"[*heartpole.V0_ACTIONS, my_action]; got {type(actions).__name__} {actions!r}"
         )
-    action_set = tuple(as_action(definition, position) for position, definition in enumerate(actions))
-    for action in action_set:
-        if action.rest_half_hours > MAX_REST_HALF_HOURS:
-            raise ValueError(
-                f"action {action.name!r} rests {action.rest_half_hours} half-hours; at most {MAX_REST_HALF_HOURS} "
-                "(a day) are accepted. For a night's sleep use sleeps=True and the sleep_half_hours parameter"
-            )
-    return action_set
+    return tuple(as_action(definition, position) for position, definition in enumerate(actions))
 
 
 def _variables(variables: object) -> tuple[Variable, ...]:
@@ -239,19 +253,7 @@ def _variables(variables: object) -> tuple[Variable, ...]:
             "with v0's six, e.g. (*heartpole.V0_VARIABLES, heartpole.Variable('stress', 0.0, decay=0.9)); "
             f"got {type(variables).__name__} {variables!r}"
         )
-    variable_set = tuple(_variable(definition, position) for position, definition in enumerate(variables))
-    if variable_set[: len(V0_VARIABLES)] != V0_VARIABLES:
-        raise ValueError(
-            f"the first six variables must be v0's exactly, {[v.name for v in V0_VARIABLES]} "
-            f"(heartpole.V0_VARIABLES), since the step itself reads and writes them; got "
-            f"{[v.name for v in variable_set[: len(V0_VARIABLES)]]}. Add yours after them: "
-            "variables=(*heartpole.V0_VARIABLES, my_variable)"
-        )
-    names = [v.name for v in variable_set]
-    duplicates = sorted({name for name in names if names.count(name) > 1})
-    if duplicates:
-        raise ValueError(f"variable names must be unique; {duplicates} appear more than once in {names}")
-    return variable_set
+    return tuple(_variable(definition, position) for position, definition in enumerate(variables))
 
 
 def _variable(definition: object, position: int) -> Variable:
@@ -269,28 +271,6 @@ def _variable(definition: object, position: int) -> Variable:
             f"{type(definition).__name__} {definition!r}"
         )
     return definition  # a Variable checks its own fields when it is made
-
-
-def _check_effects(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:
-    by_name = {v.name: v for v in variables}
-    for action in actions:
-        for name, (_, high) in action.effects.items():
-            if name in BOOKKEEPING:
-                raise ValueError(
-                    f"action {action.name!r} may not change {name!r}, which the step keeps itself; actions may "
-                    f"change {[v for v in by_name if v not in BOOKKEEPING]}"
-                )
-            if name not in by_name:
-                raise ValueError(
-                    f"action {action.name!r} changes {name!r}, which is not a state variable of this variant "
-                    f"({list(by_name)}); add it, e.g. variables=(*heartpole.V0_VARIABLES, "
-                    f"heartpole.Variable({name!r}, 0.0, decay=0.9))"
-                )
-            if high > 0 and math.isfinite(by_name[name].high):
-                raise ValueError(
-                    f"action {action.name!r} raises {name!r}, whose high bound is {by_name[name].high}: the step "
-                    "keeps variables above their low bound but does not cap them, so use high=math.inf"
-                )
 
 
 def _params(params: dict[str, Any]) -> dict[str, Any]:

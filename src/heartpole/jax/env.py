@@ -1,6 +1,6 @@
-"""HeartPole as a JAX environment with gymnax's ``Environment`` API: :class:`HeartPoleJax`.
+"""HeartPole as a JAX environment with gymnax's ``Environment`` API: `HeartPoleJax`.
 
-The step is :func:`heartpole.model.step` itself: :data:`MODEL` is :mod:`heartpole.model`'s functions
+The step is [`step`][heartpole.model.step] itself: `MODEL` is [`heartpole.model`][heartpole.model]'s functions
 rebound to ``jax.numpy`` (``exp``, ``where``) with tuples for states, so JAX traces the very code the
 NumPy envs compile with numba. What this module adds is the gymnax machinery around it: the state and
 parameter pytrees, key handling, the step counter, truncation and autoreset.
@@ -22,10 +22,10 @@ import numpy as np
 from heartpole import model
 from heartpole.dynamics import Dynamics
 from heartpole.jax.spaces import Box, Discrete
-from heartpole.model import ActionEffects, StepTables
+from heartpole.model import ActionEffects, StepTables, TableFields, table_fields
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
-""":mod:`heartpole.model`'s functions with their own code objects, run on ``jax.numpy``."""
+"""[`heartpole.model`][heartpole.model]'s functions with their own code objects, run on ``jax.numpy``."""
 
 
 @jax.tree_util.register_dataclass
@@ -42,50 +42,57 @@ class EnvState:
 class EnvParams:
     """A variant's numbers as arrays, so that they can be changed, batched and ``vmap``-ed over.
 
-    Per action ``a`` and variable ``v`` (``(num_actions, num_variables)`` arrays): ``effect_low``,
-    ``effect_width``, ``rest_fade``; per action: ``rest``, ``drowsy``, ``sleeps``; per variable: ``floor``,
-    ``fade``, ``anxiety_relief``; scalars: ``heart_attack_proclivity``, ``heart_attack_penalty``,
-    ``wake_low``, ``wake_width`` and ``max_steps_in_episode`` (the truncation limit, gymnax's name).
-    Their meaning is :class:`heartpole.model.ActionEffects` and :class:`heartpole.model.StepTables`'.
+    The model's own tables, their numbers as float32 arrays: ``effects`` is an
+    [`ActionEffects`][heartpole.model.ActionEffects] with one row per action (a ``PerVariable`` field is a
+    ``(num_actions, num_variables)`` array, a ``Number`` field ``(num_actions,)``), ``tables`` a
+    [`StepTables`][heartpole.model.StepTables] (``(num_variables,)`` and scalars; its ``Shape`` fields, which
+    fix the step's loops, stay with the env and are empty here). ``max_steps_in_episode`` is the truncation
+    limit (gymnax's name). Every field of either table reads by its name too (``params.heart_attack_penalty``),
+    and `replace` changes fields by name.
     """
 
-    effect_low: jax.Array
-    effect_width: jax.Array
-    rest_fade: jax.Array
-    rest: jax.Array
-    drowsy: jax.Array
-    sleeps: jax.Array
-    floor: jax.Array
-    fade: jax.Array
-    anxiety_relief: jax.Array
-    heart_attack_proclivity: jax.Array
-    heart_attack_penalty: jax.Array
-    wake_low: jax.Array
-    wake_width: jax.Array
+    effects: ActionEffects
+    tables: StepTables
     max_steps_in_episode: jax.Array
+
+    def __getattr__(self, name: str) -> jax.Array:
+        for table in ("effects", "tables"):
+            if name in _NUMBERS[table]:
+                return getattr(self.__dict__[table], name)
+        raise AttributeError(f"EnvParams has no field {name!r}; it has {[*_NUMBERS['effects'], *_NUMBERS['tables']]}")
+
+    def replace(self, **changes: Any) -> EnvParams:
+        """A copy with ``changes``: fields of either table or ``max_steps_in_episode``, by name."""
+        effects = {k: v for k, v in changes.items() if k in _NUMBERS["effects"]}
+        tables = {k: v for k, v in changes.items() if k in _NUMBERS["tables"]}
+        unknown = set(changes) - set(effects) - set(tables) - {"max_steps_in_episode"}
+        if unknown:
+            raise TypeError(f"EnvParams.replace() got unknown field(s) {sorted(unknown)}")
+        return EnvParams(
+            self.effects._replace(**effects),
+            self.tables._replace(**tables),
+            changes.get("max_steps_in_episode", self.max_steps_in_episode),
+        )
 
     @classmethod
     def from_dynamics(cls, dynamics: Dynamics) -> EnvParams:
-        """The parameters of a :class:`heartpole.Dynamics` (float32; the step limit int32)."""
+        """The parameters of a [`Dynamics`][heartpole.dynamics.Dynamics] (float32; the step limit int32)."""
         f32: Callable[[Any], jax.Array]
         f32 = lambda values: jnp.asarray(np.asarray(values, dtype=np.float32))  # noqa: E731
-        effects, tables = dynamics.effects, dynamics.tables
-        return cls(
-            effect_low=f32([e.effect_low for e in effects]),
-            effect_width=f32([e.effect_width for e in effects]),
-            rest_fade=f32([e.rest_fade for e in effects]),
-            rest=f32([e.rest for e in effects]),
-            drowsy=f32([e.drowsy for e in effects]),
-            sleeps=f32([e.sleeps for e in effects]),
-            floor=f32(tables.floor),
-            fade=f32(tables.fade),
-            anxiety_relief=f32(tables.anxiety_relief),
-            heart_attack_proclivity=f32(tables.heart_attack_proclivity),
-            heart_attack_penalty=f32(tables.heart_attack_penalty),
-            wake_low=f32(tables.wake_low),
-            wake_width=f32(tables.wake_width),
-            max_steps_in_episode=jnp.asarray(dynamics.params.max_steps, dtype=jnp.int32),
+        effects = ActionEffects._make(
+            f32([getattr(e, name) for e in dynamics.effects]) for name in ActionEffects._fields
         )
+        tables = StepTables._make(
+            f32(getattr(dynamics.tables, name)) if name in _NUMBERS["tables"] else () for name in StepTables._fields
+        )
+        return cls(effects, tables, jnp.asarray(dynamics.params.max_steps, dtype=jnp.int32))
+
+
+EFFECTS, TABLES = table_fields(ActionEffects), table_fields(StepTables)
+_NUMBERS = {
+    "effects": (*EFFECTS.per_variable, *EFFECTS.numbers),
+    "tables": (*TABLES.per_variable, *TABLES.numbers),
+}
 
 
 class HeartPoleJax:
@@ -112,12 +119,13 @@ class HeartPoleJax:
         self.dynamics = Dynamics() if dynamics is None else dynamics
         self.num_variables = len(self.dynamics.variables)
         self._num_actions = len(self.dynamics.actions)
-        self._rest_offsets = self.dynamics.tables.rest_offsets  # static: how many drowsy half-hours to unroll
+        # static: the Shape fields fix the step's loops (how many drowsy half-hours to unroll)
+        self._shape = {name: getattr(self.dynamics.tables, name) for name in TABLES.shape}
         self._default_params = EnvParams.from_dynamics(self.dynamics)
 
     @classmethod
     def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
-        """The JAX env of a registered HeartPole id (v0, v1, or a :func:`heartpole.register_variant` one),
+        """The JAX env of a registered HeartPole id (v0, v1, or a `heartpole.register_variant` one),
         made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...)."""
         from heartpole.policies import env_dynamics
 
@@ -160,7 +168,7 @@ class HeartPoleJax:
         return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
-        """:func:`heartpole.model.initial_state` with one uniform draw from ``key``."""
+        """[`initial_state`][heartpole.model.initial_state] with one uniform draw from ``key``."""
         zeros = (jnp.float32(0.0),) * self.num_variables
         uniform = jax.random.uniform(key, (), jnp.float32)
         variables = jnp.stack(MODEL.initial_state(zeros, uniform, self._tables(params)))
@@ -170,7 +178,7 @@ class HeartPoleJax:
     def step_env(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """:func:`heartpole.model.step` with ``len(state) + 2`` uniform draws from ``key``, no reset:
+        """[`step`][heartpole.model.step] with ``len(state) + 2`` uniform draws from ``key``, no reset:
         ``(obs, state, reward, terminated, info)``."""
         n = self.num_variables
         u = jax.random.uniform(key, (n + 2,), jnp.float32)
@@ -193,7 +201,7 @@ class HeartPoleJax:
         return state.variables
 
     def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
-        """gymnax 1.0's observation hook: :meth:`get_obs`."""
+        """gymnax 1.0's observation hook: `get_obs`."""
         return self.get_obs(state, params, key)
 
     def is_truncated(self, state: EnvState, params: EnvParams) -> jax.Array:
@@ -205,7 +213,7 @@ class HeartPoleJax:
         return jnp.bool_(False)
 
     def is_terminal(self, state: EnvState, params: EnvParams) -> jax.Array:
-        """gymnax's older name of :meth:`is_terminated` (time limits excluded)."""
+        """gymnax's older name of `is_terminated` (time limits excluded)."""
         return self.is_terminated(state, params)
 
     def discount(self, state: EnvState, params: EnvParams) -> jax.Array:
@@ -224,36 +232,24 @@ class HeartPoleJax:
         return Box(box.low, box.high, box.shape, jnp.float32)
 
     def state_space(self, params: EnvParams | None = None) -> dict[str, Any]:
-        """The spaces of :class:`EnvState`'s fields."""
+        """The spaces of `EnvState`'s fields."""
         params = self.default_params if params is None else params
         return {"variables": self.observation_space(params), "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32)}
 
-    # -- the step's inputs as :mod:`heartpole.model` takes them ------------------------------------------
+    # -- the step's inputs as [`heartpole.model`][heartpole.model] takes them ------------------------------------------
     def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
-        n, action = self.num_variables, jnp.asarray(action, dtype=jnp.int32)
-        row: Callable[[jax.Array], tuple[jax.Array, ...]]
-        row = lambda table: tuple(table[action, v] for v in range(n))  # noqa: E731
-        return ActionEffects(
-            effect_low=row(params.effect_low),
-            effect_width=row(params.effect_width),
-            rest_fade=row(params.rest_fade),
-            rest=params.rest[action],
-            drowsy=params.drowsy[action],
-            sleeps=params.sleeps[action],
-        )
+        """The chosen action's row of ``params.effects``, a ``PerVariable`` field as a tuple."""
+        row = jax.tree_util.tree_map(lambda table: table[jnp.asarray(action, dtype=jnp.int32)], params.effects)
+        return self._as_tuples(row, EFFECTS)
 
     def _tables(self, params: EnvParams) -> StepTables:
-        n = self.num_variables
-        return StepTables(
-            floor=tuple(params.floor[v] for v in range(n)),
-            fade=tuple(params.fade[v] for v in range(n)),
-            anxiety_relief=tuple(params.anxiety_relief[v] for v in range(n)),
-            rest_offsets=self._rest_offsets,
-            heart_attack_proclivity=params.heart_attack_proclivity,
-            heart_attack_penalty=params.heart_attack_penalty,
-            wake_low=params.wake_low,
-            wake_width=params.wake_width,
-        )
+        """``params.tables``, a ``PerVariable`` field as a tuple, the Shape fields the env's own."""
+        return self._as_tuples(params.tables, TABLES)._replace(**self._shape)
+
+    def _as_tuples(self, table: Any, fields: TableFields) -> Any:
+        """``table`` with each ``PerVariable`` array as the tuple of its items, as the model's step reads it."""
+        return table._replace(**{name: tuple(getattr(table, name)[v] for v in range(self.num_variables))
+                                 for name in fields.per_variable})  # fmt: skip
 
 
 def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:
