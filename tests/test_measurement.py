@@ -108,13 +108,13 @@ def test_observation_and_space() -> None:
     ("make", "message"),
     [
         (lambda: Measurement({}), "noise must map at least one variable name"),
-        (lambda: Measurement(0.1), "noise must map"),  # type: ignore[arg-type]
-        (lambda: Measurement({1: 0.1}), "noise's keys must be variable names"),  # type: ignore[dict-item]
+        (lambda: Measurement(0.1), "noise must map"),
+        (lambda: Measurement({1: 0.1}), "noise's keys must be variable names"),
         (lambda: Measurement({"alertness": -0.1}), r"noise\['alertness'\] must be a finite number >= 0"),
         (lambda: Measurement({"alertness": math.nan}), "finite number >= 0"),
         (lambda: Measurement({"alertness": True}), "finite number >= 0"),
         (lambda: Measurement({"alertness": 0.1}, every=0), "every must be an integer >= 1, got 0"),
-        (lambda: Measurement({"alertness": 0.1}, every=1.5), "every must be an integer >= 1"),  # type: ignore[arg-type]
+        (lambda: Measurement({"alertness": 0.1}, every=1.5), "every must be an integer >= 1"),
         (
             lambda: Measurement({"mood": 0.1}).sensor(NAMES),
             r"unknown variables \['mood'\]; the env observes \['alertness'",
@@ -127,7 +127,7 @@ def test_observation_and_space() -> None:
 )
 def test_bad_measurements_are_refused_clearly(make: object, message: str) -> None:
     with pytest.raises(ValueError, match=message):
-        make()  # type: ignore[operator]
+        make()
 
 
 def test_to_dict() -> None:

@@ -166,7 +166,7 @@ def test_resolve_and_to_dict() -> None:
     with pytest.raises(ValueError, match=r"unknown population 'nope'; named populations: \['default'\]"):
         People.resolve("nope")
     with pytest.raises(TypeError, match="people must be a People"):
-        People.resolve(3)  # type: ignore[arg-type]
+        People.resolve(3)
     assert json.loads(json.dumps(people.to_dict())) == {
         "fields": {
             "heart_attack_proclivity": {"uniform": [0.3, 0.7]},
@@ -188,7 +188,7 @@ def test_resolve_and_to_dict() -> None:
 def test_people_are_frozen_and_hashable() -> None:
     people = People.default()
     with pytest.raises(dataclasses.FrozenInstanceError):
-        people.cohort = ()  # type: ignore[misc]
+        people.cohort = ()
     assert hash(people) == hash(People(cohort=people.cohort))
     assert uniform_population() == uniform_population()
 
@@ -242,13 +242,13 @@ def test_people_are_frozen_and_hashable() -> None:
 )
 def test_bad_populations_are_refused_clearly(make: object, error: type[Exception], message: str) -> None:
     with pytest.raises(error, match=message):
-        make()  # type: ignore[operator]
+        make()
 
 
 def test_a_pair_given_as_a_list_is_a_pair() -> None:
-    person = Person("Bo", wake_alertness=[0.6, 1.2])  # type: ignore[arg-type]  # JSON gives lists
+    person = Person("Bo", wake_alertness=[0.6, 1.2])  # JSON gives lists
     assert person.values() == {"wake_alertness": (0.6, 1.2)}
-    assert People(wake_alertness=[0.6, 1.2]).sample(np.random.default_rng(0), 2).values.tolist() == [  # type: ignore[arg-type]
+    assert People(wake_alertness=[0.6, 1.2]).sample(np.random.default_rng(0), 2).values.tolist() == [
         [0.6, 1.2],
         [0.6, 1.2],
     ]
