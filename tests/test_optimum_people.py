@@ -38,9 +38,10 @@ def test_each_person_gets_their_own_optimum(small: optimum_people.PeopleOptimum)
 
 def test_the_env_kwargs_are_each_persons_base() -> None:
     cohort = People(cohort=[Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2))])
-    solved = solve_people(cohort, env_kwargs={"max_steps": 800})
-    assert solved.solutions[0].params.max_steps == 800 and solved.env_kwargs == {"max_steps": 800}
-    assert solved.solutions[0].params.sleep_half_hours == 12
+    base = {"max_steps": 800, "sleep_half_hours": 20}
+    solved = solve_people(cohort, env_kwargs=base)
+    assert solved.solutions[0].params.max_steps == 800 and solved.env_kwargs == base
+    assert solved.solutions[0].params.sleep_half_hours == 12  # the person's own field wins
 
 
 def test_equal_people_are_solved_once_and_progress_is_reported() -> None:

@@ -29,7 +29,7 @@ import numpy as np
 from heartpole.people import People
 from heartpole.stats import confidence_interval
 
-from .solution import OptimumSolution, cache_dir, optimum
+from .solution import OptimumSolution, optimum
 
 SOLVED_HERE_SECONDS = 0.5
 """A lookup slower than this was a solve, not a cache hit: the remaining people go to worker processes."""
@@ -213,7 +213,7 @@ def _solve_distinct(
     if workers > 1 and total > 1 and time.perf_counter() - start > SOLVED_HERE_SECONDS:
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(min(workers, total - 1), mp_context=context) as pool:
-            futures = [(name, pool.submit(_worker, env_id, kwargs, str(cache_dir()))) for name, kwargs in jobs[1:]]
+            futures = [(name, pool.submit(_worker, env_id, kwargs)) for name, kwargs in jobs[1:]]
             for name, future in futures:
                 solutions.append(_named(name, future.result))
                 progress(len(solutions), total)
@@ -224,9 +224,8 @@ def _solve_distinct(
     return solutions
 
 
-def _worker(env_id: str, kwargs: dict[str, Any], cache_root: str) -> OptimumSolution:
-    """Solve (or load) one person in a worker process, with the parent's cache directory."""
-    os.environ["HEARTPOLE_CACHE_DIR"] = cache_root
+def _worker(env_id: str, kwargs: dict[str, Any]) -> OptimumSolution:
+    """Solve (or load) one person in a worker process (its environment, so its cache folder, is the parent's)."""
     return optimum(env_id, kwargs)
 
 
