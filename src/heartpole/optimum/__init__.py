@@ -64,6 +64,7 @@ from .drinking import (
     solve_drinking,
 )
 from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_drinks, coffee_check, drink_floor
+from .people import OracleRegret, PeopleOptimum, oracle_regret, solve_people
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
 
@@ -79,6 +80,8 @@ __all__ = [
     "GridSolution",
     "NotCoveredError",
     "OptimumSolution",
+    "OracleRegret",
+    "PeopleOptimum",
     "available",
     "cache_dir",
     "check_beer",
@@ -89,8 +92,10 @@ __all__ = [
     "drinking_rule_value",
     "optimum",
     "optimum_for",
+    "oracle_regret",
     "sleep_rule_value",
     "solve",
     "solve_drinking",
     "solve_params",
+    "solve_people",
 ]

@@ -1,0 +1,245 @@
+"""The optimum of every person of a cohort, and oracle regret: how far a policy is from each person's best.
+
+[`solve_people`][heartpole.optimum.people.solve_people] solves each distinct person of a finite
+[`People`][heartpole.people.People] once, through [`optimum`][heartpole.optimum.optimum] and its cache
+(memory and disk), several at a time in worker processes. The person's optimal expected return is the
+quantity [`EvaluationResult.with_regret`][heartpole.evaluation.EvaluationResult.with_regret] compares a
+policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``error_bound``.
+
+[`oracle_regret`][heartpole.optimum.people.oracle_regret] is then the mean over episodes of (the episode's
+person's optimal expected return - the policy's expected-risk return in that episode), with a 95% Student-t
+interval over episodes widened by the optimum's grid error. The stacked thresholds of
+[`PeopleOptimum`][heartpole.optimum.people.PeopleOptimum] act as the ``oracle`` policy: each env sleeps as
+its own person's optimal policy would.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from heartpole.people import People
+from heartpole.stats import confidence_interval
+
+from .solution import OptimumSolution, optimum
+
+SOLVED_HERE_SECONDS = 0.5
+"""A lookup slower than this was a solve, not a cache hit: the remaining people go to worker processes."""
+
+ProgressCallback = Callable[[int, int], None]
+"""Called as ``progress(done, total)`` after each distinct person is solved or loaded."""
+
+
+@dataclass(frozen=True)
+class OracleRegret:
+    """Oracle regret over episodes: mean of (person's optimal expected return - expected-risk return).
+
+    Attributes:
+        regret: the mean over episodes.
+        ci95: its 95% Student-t interval, widened on both sides by the mean grid error of the episodes'
+            optima (``(nan, nan)`` below two episodes).
+        episodes: how many episodes.
+        regrets: ``(episodes,)`` float64, each episode's regret.
+    """
+
+    regret: float
+    ci95: tuple[float, float]
+    episodes: int
+    regrets: np.ndarray = field(repr=False, compare=False)
+
+
+def oracle_regret(
+    optimal_returns: np.ndarray,
+    person: np.ndarray,
+    expected_returns: np.ndarray,
+    error_bounds: np.ndarray | None = None,
+) -> OracleRegret:
+    """Oracle regret of episodes whose persons are ``person`` and expected-risk returns ``expected_returns``.
+
+    Args:
+        optimal_returns: ``(people,)`` each person's optimal expected return.
+        person: ``(episodes,)`` each episode's person (an index into ``optimal_returns``).
+        expected_returns: ``(episodes,)`` each episode's expected-risk return (final score - penalty x the
+            summed heart-attack risks, as evaluation computes it).
+        error_bounds: ``(people,)`` each optimum's grid error bound (default 0).
+
+    Raises:
+        ValueError: no episode, shapes that differ, or a person index out of range.
+    """
+    optimal = np.asarray(optimal_returns, dtype=np.float64)
+    who = np.asarray(person)
+    returns = np.asarray(expected_returns, dtype=np.float64)
+    bounds = np.zeros_like(optimal) if error_bounds is None else np.asarray(error_bounds, dtype=np.float64)
+    if optimal.ndim != 1 or bounds.shape != optimal.shape:
+        raise ValueError(
+            f"optimal_returns and error_bounds must be (people,) arrays, got {optimal.shape} and {bounds.shape}"
+        )
+    if who.ndim != 1 or who.shape != returns.shape or len(who) == 0:
+        raise ValueError(
+            "person and expected_returns must be (episodes,) arrays of one length >= 1, "
+            f"got {who.shape} and {returns.shape}"
+        )
+    if not np.issubdtype(who.dtype, np.integer) or who.min() < 0 or who.max() >= len(optimal):
+        raise ValueError(
+            f"person must hold integer indices in 0..{len(optimal) - 1}, got {who.dtype} in {who.min()}..{who.max()}"
+        )
+    regrets = optimal[who] - returns
+    low, high = confidence_interval(regrets)
+    widen = float(bounds[who].mean())
+    return OracleRegret(float(regrets.mean()), (low - widen, high + widen), len(regrets), regrets)
+
+
+@dataclass(frozen=True, eq=False)
+class PeopleOptimum:
+    """Each person's optimum: their optimal expected returns, and the oracle policy's table.
+
+    Attributes:
+        people: the cohort.
+        env_id, env_kwargs: the env each person's parameters change.
+        solutions: one [`OptimumSolution`][heartpole.optimum.OptimumSolution] per person, in cohort order.
+    """
+
+    people: People
+    env_id: str
+    env_kwargs: dict[str, Any]
+    solutions: tuple[OptimumSolution, ...]
+
+    @cached_property
+    def expected_returns(self) -> np.ndarray:
+        """``(people,)`` float64: each person's optimal expected return."""
+        return np.array([s.expected_return for s in self.solutions], dtype=np.float64)
+
+    @cached_property
+    def error_bounds(self) -> np.ndarray:
+        """``(people,)`` float64: each optimum's grid error bound."""
+        return np.array([s.error_bound for s in self.solutions], dtype=np.float64)
+
+    @cached_property
+    def max_awake(self) -> np.ndarray:
+        """``(people,)`` int64: half-hours awake after which each person's optimal policy always sleeps."""
+        return np.array([s.max_awake for s in self.solutions], dtype=np.int64)
+
+    @cached_property
+    def thresholds(self) -> np.ndarray:
+        """``(people, rows, width)`` float64: each person's thresholds (rows as
+        [`OptimumSolution.thresholds`][heartpole.optimum.OptimumSolution]), the shorter tables padded with
+        their own last row and with ``inf`` beyond their ``max_awake``."""
+        rows = max(len(s.thresholds) for s in self.solutions)
+        width = int(self.max_awake.max())
+        table = np.full((len(self.solutions), rows, width), np.inf)
+        for index, solution in enumerate(self.solutions):
+            own = solution.thresholds
+            table[index, : len(own), : own.shape[1]] = own
+            table[index, len(own) :, : own.shape[1]] = own[-1]
+        return table
+
+    def sleeps(
+        self, person: np.ndarray, alertness: np.ndarray, time_since_slept: np.ndarray, decisions_left: np.ndarray
+    ) -> np.ndarray:
+        """Whether each env's person's optimal policy sleeps: ``OptimumSolution.sleeps`` of env ``i``'s person,
+        for all envs at once (``(n,)`` arrays; ``decisions_left`` in 1..max_steps)."""
+        who = np.asarray(person, dtype=np.int64)
+        t = np.asarray(time_since_slept, dtype=np.int64)
+        table = self.thresholds
+        row = np.clip(np.asarray(decisions_left, dtype=np.int64), 0, table.shape[1] - 1)
+        threshold = table[who, np.broadcast_to(row, t.shape), np.minimum(t, table.shape[2] - 1)]
+        return (t >= self.max_awake[who]) | (np.asarray(alertness, dtype=np.float64) < threshold)
+
+    def regret(self, person: np.ndarray, expected_returns: np.ndarray) -> OracleRegret:
+        """[`oracle_regret`][heartpole.optimum.people.oracle_regret] of episodes of these people."""
+        return oracle_regret(self.expected_returns, person, expected_returns, self.error_bounds)
+
+
+def solve_people(
+    people: People | str,
+    env_id: str = "HeartPole-v0",
+    env_kwargs: Mapping[str, Any] | None = None,
+    *,
+    processes: int | None = None,
+    progress: ProgressCallback | None = None,
+) -> PeopleOptimum:
+    """Each person's optimum, each distinct person solved once and cached as [`optimum`][heartpole.optimum.optimum]
+    caches (memory and disk: later calls only load).
+
+    The first distinct person is looked up here; if that took a solve (longer than
+    [`SOLVED_HERE_SECONDS`][heartpole.optimum.people.SOLVED_HERE_SECONDS]), the others are solved
+    ``processes`` at a time in worker processes (spawned: safe beside numba's threads), else here.
+
+    Args:
+        people: a finite cohort, or a population's name (``"default"``).
+        env_id, env_kwargs: the env whose parameters each person changes (a person's fields win).
+        processes: worker processes (default: 2, or 1 on a one-core machine).
+        progress: called as ``progress(done, total)`` after each distinct person.
+
+    Raises:
+        ValueError: a population that is not a finite cohort, or ``processes`` below 1.
+        NotCoveredError: a person the solver does not cover (the message names the person).
+    """
+    cohort = People.resolve(people)
+    if cohort is None or not cohort.finite:
+        raise ValueError(
+            f"each person's optimum needs a finite cohort (People(cohort=...) or 'default'), got {people!r}"
+        )
+    workers = min(2, os.cpu_count() or 1) if processes is None else processes
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
+    base = dict(env_kwargs or {})
+    kwargs = [{**base, **person.values()} for person in cohort.cohort]
+    jobs: dict[tuple[tuple[str, Any], ...], tuple[str, dict[str, Any]]] = {}
+    for person, changed in zip(cohort.cohort, kwargs):
+        jobs.setdefault(_key(changed), (person.name, changed))  # the first person of equal ones names it
+    solved = _solve_distinct(env_id, list(jobs.values()), workers, progress or _quiet)
+    by_key = dict(zip(jobs, solved))
+    return PeopleOptimum(cohort, env_id, base, tuple(by_key[_key(changed)] for changed in kwargs))
+
+
+def _solve_distinct(
+    env_id: str, jobs: list[tuple[str, dict[str, Any]]], workers: int, progress: ProgressCallback
+) -> list[OptimumSolution]:
+    """Solve or load each ``(name, env_kwargs)``: the first here, then the rest in workers if it was solved."""
+    total = len(jobs)
+    start = time.perf_counter()
+    name, first = jobs[0]
+    solutions = [_named(name, lambda: optimum(env_id, first))]
+    progress(1, total)
+    if workers > 1 and total > 1 and time.perf_counter() - start > SOLVED_HERE_SECONDS:
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(min(workers, total - 1), mp_context=context) as pool:
+            futures = [(name, pool.submit(_worker, env_id, kwargs)) for name, kwargs in jobs[1:]]
+            for name, future in futures:
+                solutions.append(_named(name, future.result))
+                progress(len(solutions), total)
+        return solutions
+    for name, kwargs in jobs[1:]:
+        solutions.append(_named(name, lambda: optimum(env_id, kwargs)))  # noqa: B023 (called at once)
+        progress(len(solutions), total)
+    return solutions
+
+
+def _worker(env_id: str, kwargs: dict[str, Any]) -> OptimumSolution:
+    """Solve (or load) one person in a worker process (its environment, so its cache folder, is the parent's)."""
+    return optimum(env_id, kwargs)
+
+
+def _named(name: str, get: Callable[[], OptimumSolution]) -> OptimumSolution:
+    """``get()``, the person's name put before an error's message (the same type: NotCoveredError stays one)."""
+    try:
+        return get()
+    except ValueError as error:
+        raise type(error)(f"person {name!r}: {error}") from None
+
+
+def _key(kwargs: Mapping[str, Any]) -> tuple[tuple[str, Any], ...]:
+    return tuple(sorted(kwargs.items()))
+
+
+def _quiet(done: int, total: int) -> None:
+    """No progress report."""

@@ -1,0 +1,142 @@
+"""heartpole.optimum.people: each person's optimum, solved once and cached, the oracle's table, oracle regret."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import heartpole.optimum.people as optimum_people
+from heartpole.optimum import NotCoveredError, optimum, oracle_regret, solve, solve_people
+from heartpole.people import People, Person, Uniform
+from heartpole.stats import confidence_interval
+
+# Ada is v0 (solved by other tests of the session too); Bo sleeps 6 hours (a fast solve); Cy is Ada again
+SMALL = People(
+    cohort=[
+        Person("Ada", sleep_half_hours=16, wake_alertness=(0.7, 1.3)),
+        Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2)),
+        Person("Cy", sleep_half_hours=16, wake_alertness=(0.7, 1.3)),
+    ]
+)
+
+
+@pytest.fixture(scope="module")
+def small() -> optimum_people.PeopleOptimum:
+    return solve_people(SMALL)
+
+
+def test_each_person_gets_their_own_optimum(small: optimum_people.PeopleOptimum) -> None:
+    assert [s.params for s in small.solutions] == [p.params() for p in SMALL.cohort]
+    assert small.solutions[0].expected_return == optimum("HeartPole-v0").expected_return
+    assert small.solutions[1].expected_return == optimum("HeartPole-v0", SMALL.cohort[1].values()).expected_return
+    np.testing.assert_array_equal(small.expected_returns, [s.expected_return for s in small.solutions])
+    assert small.expected_returns[0] == small.expected_returns[2] != small.expected_returns[1]
+
+
+def test_the_env_kwargs_are_each_persons_base() -> None:
+    cohort = People(cohort=[Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2))])
+    base = {"max_steps": 800, "sleep_half_hours": 20}
+    solved = solve_people(cohort, env_kwargs=base)
+    assert solved.solutions[0].params.max_steps == 800 and solved.env_kwargs == base
+    assert solved.solutions[0].params.sleep_half_hours == 12  # the person's own field wins
+
+
+def test_equal_people_are_solved_once_and_progress_is_reported() -> None:
+    calls: list[tuple[int, int]] = []
+    solve_people(SMALL, progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 2), (2, 2)]  # Ada and Cy are one person to the solver
+
+
+def test_the_oracle_table_acts_as_each_persons_optimal_policy(small: optimum_people.PeopleOptimum) -> None:
+    rng = np.random.default_rng(0)
+    n = 20_000
+    person = rng.integers(0, 3, n)
+    alertness = rng.uniform(-1.0, 2.0, n)
+    awake = rng.integers(0, 90, n)  # beyond both people's max_awake too
+    left = rng.integers(1, 1001, n)
+    oracle = small.sleeps(person, alertness, awake, left)
+    for index, solution in enumerate(small.solutions):
+        mine = person == index
+        np.testing.assert_array_equal(oracle[mine], solution.sleeps(alertness[mine], awake[mine], left[mine]))
+    assert 0.05 < oracle.mean() < 0.95  # both decisions are exercised
+    assert small.thresholds.shape == (3, max(len(s.thresholds) for s in small.solutions), int(small.max_awake.max()))
+
+
+def test_oracle_regret_of_the_optimal_values_is_exactly_zero(small: optimum_people.PeopleOptimum) -> None:
+    person = np.random.default_rng(1).integers(0, 3, 500)
+    result = small.regret(person, small.expected_returns[person])
+    assert result.regret == 0.0 and result.episodes == 500
+    widen = float(small.error_bounds[person].mean())
+    assert result.ci95 == (-widen, widen)
+
+
+def test_oracle_regret_is_the_mean_gap_with_a_students_t_interval() -> None:
+    optimal = np.array([-120.0, -80.0])
+    person = np.array([0, 1, 1, 0, 1])
+    returns = np.array([-121.0, -80.5, -82.0, -120.0, -80.0])
+    gaps = np.array([1.0, 0.5, 2.0, 0.0, 0.0])
+    result = oracle_regret(optimal, person, returns, np.array([0.01, 0.03]))
+    assert result.regret == pytest.approx(gaps.mean(), abs=1e-12)
+    low, high = confidence_interval(gaps)
+    widen = (0.01 * 2 + 0.03 * 3) / 5
+    assert result.ci95 == pytest.approx((low - widen, high + widen), abs=1e-12)
+    np.testing.assert_allclose(result.regrets, gaps, atol=1e-12)
+    one = oracle_regret(optimal, np.array([1]), np.array([-81.0]))
+    assert one.regret == 1.0 and all(math.isnan(x) for x in one.ci95)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (([1.0], [], []), r"person and expected_returns must be \(episodes,\) arrays of one length >= 1"),
+        (([1.0], [0, 0], [1.0]), r"got \(2,\) and \(1,\)"),
+        (([1.0], [1], [1.0]), r"integer indices in 0..0, got int64 in 1..1"),
+        (([1.0], [-1], [1.0]), "integer indices in 0..0"),
+        (([1.0], [0.0], [1.0]), "integer indices"),
+        (([[1.0]], [0], [1.0]), r"must be \(people,\) arrays"),
+    ],
+)
+def test_bad_regret_inputs_are_refused(args: tuple[list[float], list[float], list[float]], message: str) -> None:
+    optimal, person, returns = (np.array(x) for x in args)
+    with pytest.raises(ValueError, match=message):
+        oracle_regret(optimal, person, returns)
+
+
+def test_only_finite_covered_cohorts_are_solved() -> None:
+    with pytest.raises(ValueError, match="needs a finite cohort"):
+        solve_people(People(heart_attack_proclivity=Uniform(0.4, 0.6)))
+    with pytest.raises(ValueError, match="processes must be an integer >= 1, got 0"):
+        solve_people(SMALL, processes=0)
+    sober = People(cohort=[Person("Vic", heart_attack_proclivity=0.0)])
+    with pytest.raises(NotCoveredError, match="person 'Vic': drinking may pay"):
+        solve_people(sober)
+
+
+def test_workers_solve_what_the_parent_would(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With an empty cache the first person is solved here and the second in a spawned worker: the same
+    solution as solving it here, saved in the parent's cache."""
+    monkeypatch.setenv("HEARTPOLE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(optimum_people, "SOLVED_HERE_SECONDS", 0.0)  # whatever the first took, use workers
+    cohort = People(
+        cohort=[
+            Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2)),
+            Person("Di", sleep_half_hours=12, wake_alertness=(0.5, 1.1)),
+        ]
+    )
+    parallel = solve_people(cohort, processes=2)
+    assert len(list((tmp_path / "optimum").iterdir())) == 2  # both saved, the worker's in the parent's cache
+    here = solve("HeartPole-v0", **cohort.cohort[1].values())  # solved here, no cache
+    assert parallel.solutions[1].expected_return == here.expected_return
+    np.testing.assert_array_equal(parallel.solutions[1].thresholds, here.thresholds)
+
+
+@pytest.mark.slow  # 24 solves: about a minute on two cores
+def test_the_solver_covers_every_default_person() -> None:
+    solved = solve_people("default")
+    assert len(solved.solutions) == 24
+    assert np.all(np.isfinite(solved.expected_returns)) and np.all(solved.error_bounds < 1e-5)
+    for person, solution in zip(People.default().cohort, solved.solutions):
+        assert solution.params == person.params()
