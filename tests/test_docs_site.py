@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -33,11 +34,63 @@ def copy_of_the_docs(destination: Path) -> Path:
     return destination
 
 
-def test_the_site_builds_strictly_without_a_warning(tmp_path: Path) -> None:
-    done = build(ROOT, tmp_path / "site")
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The site as CI builds it, once for the tests that read it."""
+    folder = tmp_path_factory.mktemp("built") / "site"
+    done = build(ROOT, folder)
     assert done.returncode == 0, done.stderr[-3000:]
     assert "WARNING" not in done.stderr, done.stderr[-3000:]
-    assert (tmp_path / "site" / "api" / "index.html").is_file()
+    return folder
+
+
+def test_the_site_builds_strictly_without_a_warning(site: Path) -> None:
+    assert (site / "api" / "index.html").is_file()
+    assert (site / "api" / "model" / "index.html").is_file()
+
+
+RAW_ROLE = re.compile(r":(?:py:)?(?:func|class|mod|data|meth|attr|obj|exc|const|ref):(?:`|<code>)")
+"""A reStructuredText role as Sphinx writes it (in a source), or as Markdown renders it (the role's name as
+literal text before the code: ``:func:<code>step</code>``)."""
+
+
+def test_no_page_shows_a_raw_sphinx_role(site: Path) -> None:
+    shown = {str(page.relative_to(site)): RAW_ROLE.findall(page.read_text()) for page in site.rglob("*.html")}
+    assert {page: found for page, found in shown.items() if found} == {}
+
+
+def test_the_raw_role_check_can_fail(tmp_path: Path) -> None:
+    page = tmp_path / "index.html"
+    page.write_text("<p>:func:<code>heartpole.model.step</code> runs one step</p>")
+    assert RAW_ROLE.findall(page.read_text())
+
+
+def test_every_cross_reference_in_the_sources_is_a_link() -> None:
+    """No docstring or comment in the package writes a Sphinx role (the site renders them raw)."""
+    written = {
+        str(path.relative_to(ROOT)): RAW_ROLE.findall(path.read_text())
+        for path in (ROOT / "src" / "heartpole").rglob("*.py")
+    }
+    assert {path: found for path, found in written.items() if found} == {}
+
+
+def test_every_module_has_its_api_page() -> None:
+    """Every module of the package (but the command line's, documented by its ``--help``) is rendered on
+    one of the API pages, so a reference to anything public in it resolves."""
+    rendered = set(
+        re.findall(
+            r"^::: (heartpole[\w.]*)",
+            "".join(page.read_text() for page in (ROOT / "docs" / "api").glob("*.md")),
+            flags=re.M,
+        )
+    )
+    source = ROOT / "src"
+    modules = {
+        ".".join(path.relative_to(source).with_suffix("").parts).removesuffix(".__init__")
+        for path in (source / "heartpole").rglob("*.py")
+    }
+    expected = {name for name in modules if not name.startswith("heartpole.cli") and name != "heartpole.__main__"}
+    assert sorted(expected - rendered) == []
 
 
 @pytest.mark.parametrize(

@@ -1,8 +1,8 @@
 """HeartPole's actions as data: what each one does to which state variable, by which random amount.
 
-An :class:`Action` never runs code of its own; :class:`heartpole.dynamics.Dynamics` interprets the
-data, the same way for the single env and for the vector env. That is how a user adds an action (the
-tutorial's homework) without touching the physiology::
+An [`Action`][heartpole.actions.Action] never runs code of its own;
+[`heartpole.dynamics.Dynamics`][heartpole.dynamics.Dynamics] interprets the data, the same way for the single env and
+for the vector env. That is how a user adds an action (the tutorial's homework) without touching the physiology::
 
     tea = Action("drink_tea", {"alertness": (0.0, 0.4), "hypertension": (0.0, 0.1)},
                  fact="Tea holds about half the caffeine of coffee.")
@@ -192,11 +192,12 @@ V1_ACTIONS: tuple[Action, ...] = (*V0_ACTIONS, *V1_NEW_ACTIONS)
 """HeartPole-v1's action set: v0's four (same indices), then tea, nap, exercise and cannabis."""
 
 ACTION_FIELDS: tuple[str, ...] = ("name", "effects", "rest_half_hours", "sleeps", "fact", "source")
-"""The fields of an action definition, in :class:`Action`'s order."""
+"""The fields of an action definition, in [`Action`][heartpole.actions.Action]'s order."""
 
 
 def as_action(definition: Action | Mapping[str, Any], position: int | None = None) -> Action:
-    """An :class:`Action` from itself or from a mapping of its fields (say, read from a JSON or YAML file).
+    """An [`Action`][heartpole.actions.Action] from itself or from a mapping of its fields (say, read from a JSON or
+    YAML file).
 
     ``{"name": "drink_tea", "effects": {"alertness": [0, 0.5]}}`` gives ``Action("drink_tea", {...})``.
 

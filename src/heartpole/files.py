@@ -4,19 +4,21 @@ Everything HeartPole writes goes through this module, so that an error, Ctrl-C, 
 of a process manager, a scheduler or a closed terminal never leaves half a file or half a folder behind,
 and never costs what was there before:
 
-* :func:`atomic_files` (and :func:`atomic_write`, :func:`write_text`, :func:`write_json`): each file is
-  written under a hidden temporary name in its own folder and moved into place with ``os.replace`` once
-  all of them are complete.
-* :func:`staged_folder`: a whole folder is built in a hidden sibling and moved into place at the end; a
-  folder already there is replaced only then. :func:`scratch_folder` and :func:`replace_folder` are its
-  two halves, for writers that must be pointed at a folder of their own (Minari).
-* :func:`folder_in_place`: work that saves its own progress in its output folder (a Ray Tune search, to
-  resume) runs there, with any earlier folder kept aside until the work is done.
-* :func:`signal_policy`: the ``heartpole`` command's handlers. SIGINT, SIGTERM and SIGHUP raise
-  :class:`Interrupted` (a ``KeyboardInterrupt``) in the main thread, so ``finally`` blocks and context
-  managers clean up, and the command exits with :func:`exit_code`: 128 + the signal's number.
-* :func:`signals_deferred`: moves into place and cleanups run to their end; a signal that arrives meanwhile
-  takes effect right after.
+* [`atomic_files`][heartpole.files.atomic_files] (and [`atomic_write`][heartpole.files.atomic_write],
+  [`write_text`][heartpole.files.write_text], [`write_json`][heartpole.files.write_json]): each file is written under a
+  hidden temporary name in its own folder and moved into place with ``os.replace`` once all of them are complete.
+* [`staged_folder`][heartpole.files.staged_folder]: a whole folder is built in a hidden sibling and moved into place at
+  the end; a folder already there is replaced only then. [`scratch_folder`][heartpole.files.scratch_folder] and
+  [`replace_folder`][heartpole.files.replace_folder] are its two halves, for writers that must be pointed at a folder of
+  their own (Minari).
+* [`folder_in_place`][heartpole.files.folder_in_place]: work that saves its own progress in its output folder (a Ray
+  Tune search, to resume) runs there, with any earlier folder kept aside until the work is done.
+* [`signal_policy`][heartpole.files.signal_policy]: the ``heartpole`` command's handlers. SIGINT, SIGTERM and SIGHUP
+  raise [`Interrupted`][heartpole.files.Interrupted] (a ``KeyboardInterrupt``) in the main thread, so ``finally`` blocks
+  and context managers clean up, and the command exits with [`exit_code`][heartpole.files.exit_code]: 128 + the signal's
+  number.
+* [`signals_deferred`][heartpole.files.signals_deferred]: moves into place and cleanups run to their end; a signal that
+  arrives meanwhile takes effect right after.
 
 Files and folders get the modes the umask gives, as ``open`` and ``mkdir`` would. This module imports
 nothing from HeartPole.
@@ -49,7 +51,8 @@ _received: list[int] = []  # the first signal the policy's handlers saw, for the
 
 
 class Interrupted(KeyboardInterrupt):
-    """A signal that ends the command, raised in the main thread wherever it was (see :func:`signal_policy`).
+    """A signal that ends the command, raised in the main thread wherever it was (see
+    [`signal_policy`][heartpole.files.signal_policy]).
 
     A ``KeyboardInterrupt``, so that whatever cleans up after Ctrl-C cleans up after SIGTERM and SIGHUP too.
     """
@@ -97,7 +100,8 @@ def signal_handlers_kept() -> Iterator[None]:
 
 @contextmanager
 def _handlers(handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]:
-    """``handler`` for each of :data:`SIGNALS` while the block runs (main thread only), then the previous ones."""
+    """``handler`` for each of [`SIGNALS`][heartpole.files.SIGNALS] while the block runs (main thread only), then the
+    previous ones."""
     with signal_handlers_kept():
         for s in SIGNALS if _main_thread() else ():
             if _swappable(signal.getsignal(s)):
@@ -107,13 +111,14 @@ def _handlers(handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]
 
 @contextmanager
 def signal_policy() -> Iterator[None]:
-    """While the block runs, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` in the main thread.
+    """While the block runs, SIGINT, SIGTERM and SIGHUP raise [`Interrupted`][heartpole.files.Interrupted] in the main
+    thread.
 
     The ``heartpole`` command runs inside this: every ``finally`` and context manager on the way out runs
     (staging folders and temporary files are removed, Ray is shut down), then the command exits with
-    :func:`exit_code`. The handlers from before are restored at the end. Ignored signals stay ignored. An
-    :class:`Interrupted` raised where Python ignores exceptions (a ``__del__``) is delivered again.
-    """
+    [`exit_code`][heartpole.files.exit_code]. The handlers from before are restored at the end. Ignored signals stay
+    ignored. An [`Interrupted`][heartpole.files.Interrupted] raised where Python ignores exceptions (a ``__del__``)
+    is delivered again."""
     _received.clear()
     hook = sys.unraisablehook
     sys.unraisablehook = _redeliver(hook)
@@ -125,8 +130,8 @@ def signal_policy() -> Iterator[None]:
 
 
 def _redeliver(hook: Callable[[Any], object]) -> Callable[[Any], None]:
-    """An unraisable hook that delivers again a signal whose :class:`Interrupted` was raised where Python
-    ignores exceptions (in a ``__del__`` or a weakref callback, where a signal handler may run), so that
+    """An unraisable hook that delivers again a signal whose [`Interrupted`][heartpole.files.Interrupted] was raised
+    where Python ignores exceptions (in a ``__del__`` or a weakref callback, where a signal handler may run), so that
     it is not lost. From another thread, a moment later: delivered at once, it would be raised in this hook,
     where it would be ignored again."""
 
@@ -143,7 +148,7 @@ def _redeliver(hook: Callable[[Any], object]) -> Callable[[Any], None]:
 
 
 def received_signal() -> int | None:
-    """The first signal :func:`signal_policy` received, or ``None``."""
+    """The first signal [`signal_policy`][heartpole.files.signal_policy] received, or ``None``."""
     return _received[0] if _received else None
 
 
@@ -154,8 +159,8 @@ def exit_code() -> int:
 
 
 def interruption() -> Interrupted:
-    """The exception to raise when a library stopped gracefully on a signal: :class:`Interrupted` of the
-    first signal received (SIGINT if none was recorded)."""
+    """The exception to raise when a library stopped gracefully on a signal:
+    [`Interrupted`][heartpole.files.Interrupted] of the first signal received (SIGINT if none was recorded)."""
     return Interrupted(received_signal() or signal.SIGINT)
 
 
@@ -164,10 +169,9 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP until the block is done, then deliver the first one that came.
 
     For the steps that must not stop halfway: moving files into place, removing a staging folder, shutting
-    down Ray. The signal then does what it would have done (with :func:`signal_policy`: raise
-    :class:`Interrupted`; without, Python's defaults: ``KeyboardInterrupt``, or the end of the process).
-    Only in the main thread (signals are handled there); elsewhere the block just runs.
-    """
+    down Ray. The signal then does what it would have done (with [`signal_policy`][heartpole.files.signal_policy]: raise
+    [`Interrupted`][heartpole.files.Interrupted]; without, Python's defaults: ``KeyboardInterrupt``, or the end of
+    the process). Only in the main thread (signals are handled there); elsewhere the block just runs."""
     pending: list[int] = []
 
     def hold(signum: int, frame: FrameType | None) -> None:
@@ -184,12 +188,12 @@ def signals_deferred() -> Iterator[None]:
 @contextmanager
 def signals_as_ctrl_c() -> Iterator[None]:
     """While the block runs, SIGTERM and SIGHUP do what Ctrl-C does, for libraries that stop gracefully on
-    SIGINT only (Ray Tune stops its trials and saves its state); the signal is noted for :func:`exit_code`.
+    SIGINT only (Ray Tune stops its trials and saves its state); the signal is noted for
+    [`exit_code`][heartpole.files.exit_code].
 
-    Applies only under :func:`signal_policy`, and once: a second signal, or one while no library handles
-    SIGINT, raises :class:`Interrupted` as usual. All three handlers are restored afterwards, since such a
-    library may leave its own SIGINT handler installed.
-    """
+    Applies only under [`signal_policy`][heartpole.files.signal_policy], and once: a second signal, or one while no
+    library handles SIGINT, raises [`Interrupted`][heartpole.files.Interrupted] as usual. All three handlers are
+    restored afterwards, since such a library may leave its own SIGINT handler installed."""
     forwarded: list[int] = []
 
     def forward(signum: int, frame: FrameType | None) -> None:
@@ -273,7 +277,8 @@ def atomic_files(*paths: PathLike) -> Iterator[list[Path]]:
 
 
 def atomic_write(path: PathLike, write: Callable[[Path], object]) -> Path:
-    """Call ``write(temporary_path)``, then move the file into place at ``path`` (see :func:`atomic_files`)."""
+    """Call ``write(temporary_path)``, then move the file into place at ``path`` (see
+    [`atomic_files`][heartpole.files.atomic_files])."""
     with atomic_files(path) as (temporary,):
         write(temporary)
     return Path(path)
@@ -338,10 +343,9 @@ def replace_folder(new: PathLike, target: PathLike) -> None:
 def staged_folder(target: PathLike) -> Iterator[Path]:
     """Yield an empty hidden sibling of ``target`` to fill; when the block succeeds, it becomes ``target``.
 
-    A folder already at ``target`` is replaced only then (:func:`replace_folder`). If the block fails or is
-    interrupted, the staging folder is removed, with any missing parents this call created, and ``target``
-    is as it was.
-    """
+    A folder already at ``target`` is replaced only then ([`replace_folder`][heartpole.files.replace_folder]). If the
+    block fails or is interrupted, the staging folder is removed, with any missing parents this call created, and
+    ``target`` is as it was."""
     target = Path(target)
     with scratch_folder(target.parent, target.name) as stage:
         yield stage

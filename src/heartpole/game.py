@@ -1,9 +1,10 @@
 """A person's game of HeartPole: the keys, what the player sees, the tally, and the standing.
 
-``heartpole play`` is this module in a terminal: :func:`new_game` makes a :class:`Game` on a HeartPole env,
-:func:`play_turns` asks for one key per half-hour (read by a :class:`KeyReader`) and steps the env, and
-:func:`standings` ranks the player's :class:`Standing` beside the built-in policies' by the expected-risk
-return, the return without the luck of the heart-attack coin.
+``heartpole play`` is this module in a terminal: [`new_game`][heartpole.game.new_game] makes a
+[`Game`][heartpole.game.Game] on a HeartPole env, [`play_turns`][heartpole.game.play_turns] asks for one key per
+half-hour (read by a [`KeyReader`][heartpole.game.KeyReader]) and steps the env, and
+[`standings`][heartpole.game.standings] ranks the player's [`Standing`][heartpole.game.Standing] beside the built-in
+policies' by the expected-risk return, the return without the luck of the heart-attack coin.
 
 A game can be driven without a terminal too:
 
@@ -44,8 +45,8 @@ class Game:
     """A game in progress: the env, the keys, the player's tally.
 
     Attributes:
-        env: the HeartPole env, as :func:`gymnasium.make` returned it.
-        keys: which key takes which action (from :func:`action_keys`).
+        env: the HeartPole env, as `gymnasium.make` returned it.
+        keys: which key takes which action (from [`action_keys`][heartpole.game.action_keys]).
         observation: the last observation.
         steps: decisions taken so far.
         total_return: the realized return so far.
@@ -96,7 +97,7 @@ class Game:
         return info
 
     def status(self, max_steps: int) -> list[str]:
-        """:func:`status_lines` of the current state."""
+        """[`status_lines`][heartpole.game.status_lines] of the current state."""
         return status_lines(self.heartpole.state, self.steps, max_steps, self.heart_attacks)
 
     def summary_line(self) -> str:
@@ -159,7 +160,8 @@ def prompt(game: Game) -> str:
 
 
 def bar(value: float, full: float) -> str:
-    """``value`` as a bar of :data:`BAR_WIDTH` characters, full at ``full`` (clipped to [0, full]).
+    """``value`` as a bar of [`BAR_WIDTH`][heartpole.game.BAR_WIDTH] characters, full at ``full`` (clipped to [0,
+    full]).
 
     >>> bar(2.5, 5.0)
     '[########........]'
@@ -240,7 +242,8 @@ class KeyReader:
 
 def play_turns(game: Game, reader: KeyReader, steps: int, out: TextIO) -> bool:
     """Ask for a key every half-hour and take its action until ``steps`` decisions are taken (True) or the
-    player quits with a key of :data:`QUIT_KEYS` or at the end of input (False). Writes to ``out``."""
+    player quits with a key of [`QUIT_KEYS`][heartpole.game.QUIT_KEYS] or at the end of input (False). Writes to
+    ``out``."""
     while game.steps < steps:
         out.write(prompt(game))
         out.flush()

@@ -244,6 +244,7 @@ def cpu_total(runs: Sequence[Mapping[str, Any]]) -> dict[str, float]:
 
 
 AGGREGATED = ("mean_return", "expected_return", "heart_attacks_per_episode", "score", "wall_seconds")
+"""The figures a many-seed summary aggregates over its seeds."""
 
 
 def aggregate(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

@@ -30,7 +30,7 @@ def log_lines(action: str, state: Mapping[str, float], heart_attack: bool) -> li
 
 class Landmarks(NamedTuple):
     """The model's landmarks that the frame, the dashboard and ``heartpole play`` point out, read off
-    :mod:`heartpole.model`'s functions (so they follow the model when it changes).
+    [`heartpole.model`][heartpole.model]'s functions (so they follow the model when it changes).
 
     Attributes:
         productive: the alertness range where a sober half-hour earns at least 90% of the most it can.
@@ -53,7 +53,7 @@ class Landmarks(NamedTuple):
 
 @lru_cache(maxsize=1)
 def landmarks() -> Landmarks:
-    """The :class:`Landmarks` of the model, computed once on fine grids."""
+    """The [`Landmarks`][heartpole.render.Landmarks] of the model, computed once on fine grids."""
     alertness = np.linspace(0.0, 10.0, 10001)
     work = productivity(alertness, 0.0)
     productive = alertness[work >= 0.9 * work.max()]
@@ -204,7 +204,7 @@ def _heart(size: int) -> np.ndarray:
 
 @cache
 def _crack(size: int) -> np.ndarray:
-    """A zig-zag crack down the middle of :func:`_heart`, for the heart-attack marker."""
+    """A zig-zag crack down the middle of `_heart`, for the heart-attack marker."""
     mask = np.zeros((size, size), dtype=bool)
     points = [(0.5, 0.18), (0.42, 0.38), (0.58, 0.52), (0.44, 0.68), (0.52, 0.86)]
     width = max(size // 18, 2)

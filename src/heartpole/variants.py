@@ -1,10 +1,10 @@
 """HeartPole-v1, the tutorial's homework: v0 plus tea, naps, exercise and cannabis.
 
-:class:`HeartPoleV1` and :class:`HeartPoleV1VectorEnv` are v0's envs with v1's actions and state
-(:data:`heartpole.actions.V1_ACTIONS`, :data:`heartpole.actions.V1_VARIABLES`); the class docstring below is
-v1's manual. Users build their own variants the same way, without a class, through
-:func:`heartpole.register_variant`.
-"""
+[`HeartPoleV1`][heartpole.variants.HeartPoleV1] and [`HeartPoleV1VectorEnv`][heartpole.variants.HeartPoleV1VectorEnv]
+are v0's envs with v1's actions and state ([`heartpole.actions.V1_ACTIONS`][heartpole.actions.V1_ACTIONS],
+[`heartpole.actions.V1_VARIABLES`][heartpole.actions.V1_VARIABLES]); the class docstring below is v1's manual. Users
+build their own variants the same way, without a class, through
+[`heartpole.register_variant`][heartpole.registry.register_variant]."""
 
 from __future__ import annotations
 
@@ -103,14 +103,15 @@ class HeartPoleV1(HeartPole):
     pay for themselves.
 
     ## Starting State, Episode End, Info, Rendering
-    As v0's (:class:`heartpole.HeartPole`): all variables 0 (``thc`` included), then waking up; truncated
-    after ``max_steps`` decisions, never terminated; the same ``info`` keys; ``"rgb_array"`` frames show
+    As v0's ([`heartpole.HeartPole`][heartpole.env.HeartPole]): all variables 0 (``thc`` included), then waking up;
+    truncated after ``max_steps`` decisions, never terminated; the same ``info`` keys; ``"rgb_array"`` frames show
     ``thc`` as one more gauge.
 
     ## Arguments
     ``gymnasium.make("HeartPole-v1", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)`` and
-    the other :class:`heartpole.Params` fields (``decay_rate``, ``sleep_half_hours``, ...). The action set
-    and state are fixed; for other ones, define a variant with :func:`heartpole.register_variant`.
+    the other [`heartpole.Params`][heartpole.model.Params] fields (``decay_rate``, ``sleep_half_hours``, ...). The
+    action set and state are fixed; for other ones, define a variant with
+    [`heartpole.register_variant`][heartpole.registry.register_variant].
 
     ## Version History
     * v1: v0 plus drink_tea, take_nap, exercise and smoke_cannabis, and the ``thc`` state variable.
@@ -136,11 +137,12 @@ class HeartPoleV1(HeartPole):
 
 
 class HeartPoleV1VectorEnv(HeartPoleVectorEnv):
-    """HeartPole-v1 as a native vector env: :class:`HeartPoleV1`'s dynamics over ``num_envs`` episodes.
+    """HeartPole-v1 as a native vector env: [`HeartPoleV1`][heartpole.variants.HeartPoleV1]'s dynamics over ``num_envs``
+    episodes.
 
     Spaces are batched: observations ``(num_envs, 7)`` float32, actions ``MultiDiscrete([8] * num_envs)``.
-    Everything else (autoreset, ``info``, bad input) is :class:`heartpole.HeartPoleVectorEnv`'s.
-    """
+    Everything else (autoreset, ``info``, bad input) is
+    [`heartpole.HeartPoleVectorEnv`][heartpole.vector.HeartPoleVectorEnv]'s."""
 
     def __init__(
         self,

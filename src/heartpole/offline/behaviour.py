@@ -1,7 +1,8 @@
 """Action probabilities of policies: what importance sampling needs from a behaviour and a target policy.
 
-HeartPole's policies (:data:`heartpole.policies.Policy`) return actions, not probabilities. This module
-gives every policy that :func:`heartpole.evaluate` accepts a probability table ``(n, num_actions)``:
+HeartPole's policies ([`heartpole.policies.Policy`][heartpole.policies.Policy]) return actions, not probabilities. This
+module gives every policy that [`heartpole.evaluate`][heartpole.evaluation.evaluate] accepts a probability table ``(n,
+num_actions)``:
 
 * a policy object with an ``action_probabilities(obs)`` method says its own probabilities;
 * the built-in ``random`` policy is uniform;
@@ -9,10 +10,10 @@ gives every policy that :func:`heartpole.evaluate` accepts a probability table `
   returns different actions for the same observations without an ``action_probabilities`` method is
   rejected (its propensities would be wrong).
 
-:class:`EpsilonGreedy` (a policy mixed with epsilon-uniform random actions) and :class:`Mixture` (at each
-step, one of several policies drawn with fixed weights) are themselves policies with known probabilities,
-so they can be recorded, used as targets, and evaluated with :func:`heartpole.evaluate`.
-"""
+[`EpsilonGreedy`][heartpole.offline.behaviour.EpsilonGreedy] (a policy mixed with epsilon-uniform random actions) and
+[`Mixture`][heartpole.offline.behaviour.Mixture] (at each step, one of several policies drawn with fixed weights) are
+themselves policies with known probabilities, so they can be recorded, used as targets, and evaluated with
+[`heartpole.evaluate`][heartpole.evaluation.evaluate]."""
 
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ class EpsilonGreedy:
     """``policy``'s action with probability ``1 - epsilon``, else a uniformly random action (any of them).
 
     Its probabilities are ``(1 - epsilon) * p(a | s) + epsilon / num_actions`` with ``p`` the base policy's
-    (see :func:`action_probabilities`). Calling it samples actions with its own generator.
+    (see [`action_probabilities`][heartpole.offline.behaviour.EpsilonGreedy.action_probabilities]). Calling it samples
+    actions with its own generator.
 
     Args:
         policy: the base policy.

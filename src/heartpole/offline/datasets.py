@@ -1,10 +1,11 @@
 """Minari datasets of HeartPole episodes, recorded fast on the native vector env.
 
-:func:`record_dataset` runs a behaviour policy (any policy :func:`heartpole.evaluate` accepts, mixed with
-epsilon-uniform random actions) for whole episodes on ``gym.make_vec(..., vectorization_mode=
-"vector_entry_point")`` and writes them with ``minari.create_dataset_from_buffers``. Every step's
-behaviour probabilities (propensities) are stored, so importance sampling needs no guess about the
-behaviour policy. Infos follow Minari's convention of one entry per observation (``T + 1`` per episode):
+[`record_dataset`][heartpole.offline.datasets.record_dataset] runs a behaviour policy (any policy
+[`heartpole.evaluate`][heartpole.evaluation.evaluate] accepts, mixed with epsilon-uniform random actions) for whole
+episodes on ``gym.make_vec(..., vectorization_mode= "vector_entry_point")`` and writes them with
+``minari.create_dataset_from_buffers``. Every step's behaviour probabilities (propensities) are stored, so importance
+sampling needs no guess about the behaviour policy. Infos follow Minari's convention of one entry per observation (``T +
+1`` per episode):
 
 * ``action_probabilities[t]``: the behaviour policy's probabilities ``(num_actions,)`` at observation ``t``
   (the row of the action actually taken at ``t < T``; the last row is what it would have done next);
@@ -13,7 +14,7 @@ behaviour policy. Infos follow Minari's convention of one entry per observation 
 
 Datasets are written under a temporary folder in Minari's datasets folder (``MINARI_DATASETS_PATH``, or
 ``~/.minari/datasets``) and moved into place when complete, so an error, Ctrl-C or SIGTERM leaves nothing
-half written (:mod:`heartpole.files`). Dataset ids read ``heartpole/<env>/<behaviour>-v0``, e.g.
+half written ([`heartpole.files`][heartpole.files]). Dataset ids read ``heartpole/<env>/<behaviour>-v0``, e.g.
 ``heartpole/v0/reference-eps20-v0``.
 """
 
@@ -120,13 +121,15 @@ def record_dataset(
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
     Args:
-        policy: a policy callable, a built-in name or a model path (see :func:`heartpole.evaluate`), or a
-            sequence of them: a :class:`~heartpole.offline.behaviour.Mixture` with equal weights.
+        policy: a policy callable, a built-in name or a model path (see
+            [`heartpole.evaluate`][heartpole.evaluation.evaluate]), or a
+            sequence of them: a [`Mixture`][heartpole.offline.behaviour.Mixture] with equal weights.
         epsilon: the share of uniformly random actions, in [0, 1].
         episodes: how many whole episodes (>= 1).
         env_id: a registered HeartPole env id (``recover_environment()`` makes it again).
         seed: the seed of everything random: the env, the ``random`` policy, the behaviour's draws.
-        dataset_id: the Minari id (default: :func:`default_dataset_id` of the behaviour's name and ``env_id``).
+        dataset_id: the Minari id (default: [`default_dataset_id`][heartpole.offline.datasets.default_dataset_id] of the
+            behaviour's name and ``env_id``).
         force: replace an existing dataset of that id.
         description: the dataset's description (default: one written from the arguments).
         num_envs: episodes run side by side and written together (default: up to 1,000).
@@ -160,7 +163,8 @@ def _plan(
     num_envs: int | None,
     progress: Callable[[int], None] | None,
 ) -> tuple[str, Callable[[], None]]:
-    """:func:`record_dataset`'s checks; its dataset id and the function that records it into Minari's folder."""
+    """[`record_dataset`][heartpole.offline.datasets.record_dataset]'s checks; its dataset id and the function that
+    records it into Minari's folder."""
     import minari
 
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
@@ -232,7 +236,8 @@ def record_standard(
     progress: Callable[[int], None] | None = None,
     specs: Sequence[DatasetSpec] = STANDARD_DATASETS,
 ) -> list[str]:
-    """Record the standard collection (:data:`STANDARD_DATASETS`); returns the dataset ids.
+    """Record the standard collection ([`STANDARD_DATASETS`][heartpole.offline.datasets.STANDARD_DATASETS]); returns the
+    dataset ids.
 
     Every id is checked before anything is recorded, so an existing dataset without ``force`` stops the
     run before it starts. The datasets are moved into place together once all are recorded: an error or
@@ -256,7 +261,7 @@ def record_standard(
 @functools.lru_cache(maxsize=8)
 def reference_scores(env_id: str = "HeartPole-v0") -> tuple[float, float]:
     """Minari's reference scores: random's expected return (expected-risk estimate) and the best known
-    policy's: the true optimum's (:mod:`heartpole.optimum`) where it is known, else the expert's."""
+    policy's: the true optimum's ([`heartpole.optimum`][heartpole.optimum]) where it is known, else the expert's."""
     from heartpole.evaluation import evaluate
     from heartpole.optimum import available
 
@@ -295,7 +300,8 @@ def to_buffers(trajectories: Trajectories) -> list[EpisodeBuffer]:
 
 
 def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
-    """``policy`` (any of the components the caller was given) as a :data:`Policy`, or a ``ValueError``."""
+    """``policy`` (any of the components the caller was given) as a [`Policy`][heartpole.policies.Policy], or a
+    ``ValueError``."""
     if isinstance(policy, str):
         return load_policy(policy, env_id, rng=policy_rng(seed, index))
     if not callable(policy):
@@ -307,7 +313,8 @@ def behaviour_policy(
     policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0
 ) -> tuple[Policy, EpsilonGreedy]:
     """``(base, behaviour)``: the policy (or the per-step mixture of several) and its epsilon-greedy
-    behaviour, with the random streams :func:`record_dataset` uses for ``seed``."""
+    behaviour, with the random streams [`record_dataset`][heartpole.offline.datasets.record_dataset] uses for
+    ``seed``."""
     num_actions = len(env_dynamics(env_id).actions)
     components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
     bases = [_resolve(p, env_id, seed, n) for n, p in enumerate(components)]
@@ -340,7 +347,7 @@ def _exists(target_id: str) -> bool:
 
 def _write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:
     """Run each dataset's ``create`` with Minari pointed at a hidden scratch folder in its datasets folder,
-    then move the datasets into place together, signals deferred (:mod:`heartpole.files`): an error or an
+    then move the datasets into place together, signals deferred ([`heartpole.files`][heartpole.files]): an error or an
     interruption leaves Minari's folder as it was."""
     root = _root()
     with files.scratch_folder(root, "heartpole-datasets") as scratch:
@@ -455,5 +462,6 @@ def load_local(target_id: str) -> MinariDataset:
 
 
 def load_trajectories(target_id: str) -> Trajectories:
-    """The episodes of the local dataset ``target_id`` as :class:`Trajectories`."""
+    """The episodes of the local dataset ``target_id`` as
+    [`Trajectories`][heartpole.offline.trajectories.Trajectories]."""
     return Trajectories.from_dataset(load_local(target_id))

@@ -1,19 +1,20 @@
 """Offline RL from a HeartPole dataset: behaviour cloning and discrete conservative Q-learning (PyTorch).
 
-Both learn from :class:`~heartpole.offline.trajectories.Trajectories` alone (no env steps) and return a
-:class:`NetworkPolicy`, a plain policy callable that :func:`heartpole.evaluate` scores with the standard
-protocol. Needs PyTorch (``pip install heartpole[train]``).
+Both learn from [`Trajectories`][heartpole.offline.trajectories.Trajectories] alone (no env steps) and return a
+[`NetworkPolicy`][heartpole.offline.learners.NetworkPolicy], a plain policy callable that
+[`heartpole.evaluate`][heartpole.evaluation.evaluate] scores with the standard protocol. Needs PyTorch (``pip install
+heartpole[train]``).
 
-* :func:`behaviour_cloning`: a small MLP classifier of the logged actions; it imitates the behaviour's
-  most likely action, so it removes epsilon-noise but cannot beat the behaviour's base policy.
-* :func:`conservative_q_learning`: discrete CQL (Kumar et al. 2020): Q-learning whose loss adds
-  ``alpha * (logsumexp_a Q(s, a) - Q(s, a_data))``, pushing down the values of actions the data never
-  tried, so the greedy policy stays where the data can vouch for it.
+* [`behaviour_cloning`][heartpole.offline.learners.behaviour_cloning]: a small MLP classifier of the logged actions; it
+  imitates the behaviour's most likely action, so it removes epsilon-noise but cannot beat the behaviour's base policy.
+* [`conservative_q_learning`][heartpole.offline.learners.conservative_q_learning]: discrete CQL (Kumar et al. 2020):
+  Q-learning whose loss adds ``alpha * (logsumexp_a Q(s, a) - Q(s, a_data))``, pushing down the values of actions the
+  data never tried, so the greedy policy stays where the data can vouch for it.
 
 Rewards: by default the expected-risk rewards (each heart-attack coin replaced by its logged
-probability, :meth:`Trajectories.expected_rewards`): the same expectation, without the -100 spikes that
-drown the productivity signal. Observations are standardised with the dataset's mean and deviation.
-"""
+probability, [`Trajectories.expected_rewards`][heartpole.offline.trajectories.Trajectories.expected_rewards]): the
+same expectation, without the -100 spikes that drown the productivity signal. Observations are standardised with the
+dataset's mean and deviation."""
 
 from __future__ import annotations
 

@@ -1,9 +1,9 @@
 """Off-policy evaluation: estimate a target policy's value from episodes a behaviour policy recorded.
 
 All estimators estimate the discounted value from the start state, ``V = E[sum_t gamma^t r_t]``, the
-quantity :func:`heartpole.offline.truth.true_value` measures. With ``w_t`` the product of the importance
-ratios ``pi(a_k | s_k) / mu(a_k | s_k)`` for ``k <= t`` (``pi`` the target, ``mu`` the behaviour, whose
-probabilities the dataset stores):
+quantity [`heartpole.offline.truth.true_value`][heartpole.offline.truth.true_value] measures. With ``w_t`` the product
+of the importance ratios ``pi(a_k | s_k) / mu(a_k | s_k)`` for ``k <= t`` (``pi`` the target, ``mu`` the behaviour,
+whose probabilities the dataset stores):
 
 * **PDIS**, per-decision importance sampling (Precup et al. 2000): ``mean_i sum_t gamma^t w_it r_it``.
   Unbiased; its variance grows with the horizon.
@@ -111,14 +111,14 @@ def doubly_robust(
 class LinearFQE:
     """Fitted Q evaluation with ``Q(s, a) = theta_a . z(s)``, solved at its fixed point (LSTD-Q).
 
-    ``z(s)`` are standardised features of a HeartPole observation (:func:`features`). The last step of an
-    episode has no successor (the time limit ends it): its target is its reward.
+    ``z(s)`` are standardised features of a HeartPole observation ([`features`][heartpole.offline.ope.features]). The
+    last step of an episode has no successor (the time limit ends it): its target is its reward.
 
     Args:
         gamma: the discount.
         ridge: a small L2 penalty that keeps the linear system well posed.
         featurize: observations ``(n, obs_dim)`` -> features ``(n, d)`` whose first column is the constant 1
-            (default: :func:`features`).
+            (default: [`features`][heartpole.offline.ope.features]).
     """
 
     def __init__(
@@ -218,7 +218,7 @@ def estimate_all(
         expected_rewards: use the rewards with each heart-attack coin replaced by its probability
             (``Trajectories.expected_rewards``): same expectation, less noise.
         ridge: FQE's L2 penalty.
-        featurize: FQE's features (default: :func:`features`).
+        featurize: FQE's features (default: [`features`][heartpole.offline.ope.features]).
     """
     if not 0.0 < float(gamma) <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
@@ -287,9 +287,10 @@ def evaluate_off_policy(
         dataset_id: a dataset recorded by ``heartpole dataset`` (in ``MINARI_DATASETS_PATH``).
         policy: the target: a policy callable, a built-in name or a model path.
         gamma: the discount, in (0, 1].
-        truth_episodes: episodes for :func:`~heartpole.offline.truth.true_value`.
+        truth_episodes: episodes for [`true_value`][heartpole.offline.truth.true_value].
         seed: the seed of the truth's episodes and of a ``random`` target.
-        expected_rewards: estimate from the expected-risk rewards (see :func:`estimate_all`).
+        expected_rewards: estimate from the expected-risk rewards (see
+            [`estimate_all`][heartpole.offline.ope.estimate_all]).
 
     Raises:
         ValueError: an unknown dataset, a dataset without propensities, an unknown policy, bad gamma.

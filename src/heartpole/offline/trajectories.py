@@ -1,9 +1,10 @@
 """Whole episodes as arrays: what a behaviour policy did, with its propensities and the env's infos.
 
-:func:`collect` runs a behaviour policy on the native vector env and returns :class:`Trajectories`;
-:mod:`heartpole.offline.datasets` writes them as a Minari dataset and :meth:`Trajectories.from_dataset`
-reads one back. The off-policy estimators (:mod:`heartpole.offline.ope`) and learners work on these arrays.
-"""
+[`collect`][heartpole.offline.trajectories.collect] runs a behaviour policy on the native vector env and returns
+[`Trajectories`][heartpole.offline.trajectories.Trajectories];
+[`heartpole.offline.datasets`][heartpole.offline.datasets] writes them as a Minari dataset and
+[`Trajectories.from_dataset`][heartpole.offline.trajectories.Trajectories.from_dataset] reads one back. The
+off-policy estimators ([`heartpole.offline.ope`][heartpole.offline.ope]) and learners work on these arrays."""
 
 from __future__ import annotations
 
@@ -70,7 +71,7 @@ class Trajectories:
         """``(N, T)``: rewards with each heart-attack coin replaced by its probability (same expectation).
 
         ``reward + penalty * heart_attack - penalty * heart_attack_risk``: the coin's noise removed, as in
-        the expected-risk estimate of :func:`heartpole.evaluate`.
+        the expected-risk estimate of [`heartpole.evaluate`][heartpole.evaluation.evaluate].
         """
         attacks = self.heart_attack[:, 1:].astype(np.float64)
         return cast(
@@ -98,7 +99,8 @@ class Trajectories:
 
     @classmethod
     def from_dataset(cls, dataset: MinariDataset, penalty: float | None = None) -> Trajectories:
-        """Read a Minari dataset recorded by :func:`heartpole.offline.datasets.record_dataset`.
+        """Read a Minari dataset recorded by
+        [`heartpole.offline.datasets.record_dataset`][heartpole.offline.datasets.record_dataset].
 
         Raises:
             ValueError: if the dataset lacks HeartPole's infos or its episodes differ in length.
@@ -150,7 +152,8 @@ def iter_collect(
     progress: Callable[[int], None] | None = None,
     env_kwargs: dict[str, Any] | None = None,
 ) -> Iterator[Trajectories]:
-    """:func:`collect` one chunk at a time (``ceil(episodes / len(seeds))`` episodes each), to bound memory."""
+    """[`collect`][heartpole.offline.trajectories.collect] one chunk at a time (``ceil(episodes / len(seeds))``
+    episodes each), to bound memory."""
     chunk = -(-episodes // len(seeds))
     for first, seed in zip(range(0, episodes, chunk), seeds):
         yield _collect_chunk(behaviour, min(chunk, episodes - first), env_id, seed, progress, env_kwargs or {})

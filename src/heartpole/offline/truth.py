@@ -2,11 +2,10 @@
 
 HeartPole's dynamics are known, so a policy's value can be measured almost exactly by running it: with
 the expected-risk estimate (each step's heart-attack coin replaced by its probability, see
-:mod:`heartpole.evaluation`) the 95% intervals are hundreds of times narrower than the realized returns'.
-:func:`true_value` reports both the value HeartPole reports (the undiscounted episode return, the final
-score, heart attacks) and the value OPE estimators usually estimate: the expected discounted return
-``E[sum_t gamma^t r_t]`` from the start state, ``t = 0 .. max_steps - 1``.
-"""
+[`heartpole.evaluation`][heartpole.evaluation]) the 95% intervals are hundreds of times narrower than the realized
+returns'. [`true_value`][heartpole.offline.truth.true_value] reports both the value HeartPole reports (the
+undiscounted episode return, the final score, heart attacks) and the value OPE estimators usually estimate: the
+expected discounted return ``E[sum_t gamma^t r_t]`` from the start state, ``t = 0 .. max_steps - 1``."""
 
 from __future__ import annotations
 
@@ -77,7 +76,8 @@ def true_value(
     *,
     env_kwargs: dict[str, Any] | None = None,
 ) -> TrueValue:
-    """Run ``policy`` for ``episodes`` whole episodes and measure its true value (see :class:`TrueValue`).
+    """Run ``policy`` for ``episodes`` whole episodes and measure its true value (see
+    [`TrueValue`][heartpole.offline.truth.TrueValue]).
 
     Args:
         policy: a policy callable (stochastic ones sample inside their call), a built-in name or a model path.

@@ -15,7 +15,8 @@ SOLVER_VERSION = 3
 DEFAULT_GRID = 400
 SETTLE_TOLERANCE = 1e-13
 """A backward recursion has settled when its values, less their value at one state, change by at most this
-much (relative to their size, plus this much absolute) per decision; see :class:`Settling`."""
+much (relative to their size, plus this much absolute) per decision; see
+[`Settling`][heartpole.optimum.common.Settling]."""
 
 
 class NotCoveredError(ValueError):
@@ -56,14 +57,14 @@ class Settling:
 
     Far from the episode's end the decisions stop depending on how many are left: the values of all states
     then grow by the same amount per decision (the policy's gain) and their differences converge,
-    geometrically, to fixed ones (on v0 to rounding within about 1,200 decisions). :meth:`update` is given,
-    after each decision, the arrays that must repeat exactly (the decisions, the days' lengths) and the
-    values; it answers ``True`` once the exact arrays have repeated for ``needed`` decisions in a row and every
-    value less its first element changed by at most :data:`SETTLE_TOLERANCE` times ``1 + max |value|`` over
-    the last decision (the differences converge geometrically: a step that small leaves them settled).
-    With ``needed`` longer than a day, every day's length has settled too; from there on the recursion
-    would only add the gain, so it can stop and the policy can be kept once for all decisions beyond.
-    """
+    geometrically, to fixed ones (on v0 to rounding within about 1,200 decisions).
+    [`update`][heartpole.optimum.common.Settling.update] is given, after each decision, the arrays that must repeat
+    exactly (the decisions, the days' lengths) and the values; it answers ``True`` once the exact arrays have
+    repeated for ``needed`` decisions in a row and every value less its first element changed by at most
+    [`SETTLE_TOLERANCE`][heartpole.optimum.common.SETTLE_TOLERANCE] times ``1 + max |value|`` over the last decision
+    (the differences converge geometrically: a step that small leaves them settled). With ``needed`` longer than a
+    day, every day's length has settled too; from there on the recursion would only add the gain, so it can stop and
+    the policy can be kept once for all decisions beyond."""
 
     def __init__(self, needed: int) -> None:
         self.needed = needed

@@ -6,18 +6,18 @@ days. A day starts at a decision with ``n`` decisions left: the episode's first 
 after a sleep (at ``t = 1``: the sleep's own step is the new day's first half-hour of work). Given ``w`` it
 runs ``L`` decisions without sleeping; then the episode ends (``L == n``) or the next decision sleeps and
 the next day starts with ``n - L - 1`` decisions left. A day's *kernel* is the law of ``L`` over the waking
-grid and the expected work of the day for each ``L``; :class:`DayKernels` keeps one per ``n``, each only
-once while consecutive ones repeat (far from the end they all do: the policy has settled).
+grid and the expected work of the day for each ``L``; [`DayKernels`][heartpole.optimum.days.DayKernels] keeps one per
+``n``, each only once while consecutive ones repeat (far from the end they all do: the policy has settled).
 
-:func:`episode_outcome` turns them into ``E[work / time]``. An episode's time is ``T = max_steps +
-sleep_half_hours * K`` for ``K`` sleeps, which varies with the work, so the score is not a ratio of
-expectations. Carrying the law of ``K`` at every day start (the old pass) takes time growing like
-``max_steps ** 1.5`` (its spread grows like the root of the days) and memory like ``max_steps ** 2``.
-Instead, with ``tau = T / max_steps >= 1``, ``1 / tau`` is the integral of ``exp(-u tau)`` over ``u > 0``,
-and for each ``u`` the expectation ``E[work * exp(-u tau)]`` takes one pass over the days that multiplies
-by ``exp(-u * sleep_half_hours / max_steps)`` at each sleep. :func:`time_rule` gives the integral to
-rounding for every ``tau`` an episode can have, whatever the law of ``K``. One compiled (numba) pass
-carries all its nodes at once, through the decisions from the top, keeping only the next ``max_awake + 1``
+[`episode_outcome`][heartpole.optimum.days.episode_outcome] turns them into ``E[work / time]``. An episode's time is ``T
+= max_steps + sleep_half_hours * K`` for ``K`` sleeps, which varies with the work, so the score is not a ratio of
+expectations. Carrying the law of ``K`` at every day start (the old pass) takes time growing like ``max_steps ** 1.5``
+(its spread grows like the root of the days) and memory like ``max_steps ** 2``. Instead, with ``tau = T / max_steps >=
+1``, ``1 / tau`` is the integral of ``exp(-u tau)`` over ``u > 0``, and for each ``u`` the expectation ``E[work * exp(-u
+tau)]`` takes one pass over the days that multiplies by ``exp(-u * sleep_half_hours / max_steps)`` at each sleep.
+[`time_rule`][heartpole.optimum.days.time_rule] gives the integral to rounding for every ``tau`` an episode can have,
+whatever the law of ``K``. One compiled (numba) pass carries all its nodes at once, through the decisions from the top,
+keeping only the next ``max_awake + 1``
 day starts: time linear in the horizon, memory independent of it.
 """
 
@@ -49,9 +49,9 @@ def day_kernel(lengths: np.ndarray, earned: np.ndarray) -> Kernel:
 class DayKernels:
     """The kernels of the days starting at each ``n`` (after a sleep) and of the episode's first day.
 
-    Built by :meth:`add` for ``n = 0, 1, ...`` in turn, then :meth:`close`; a run of equal kernels is stored
-    once. Days starting beyond the last ``n`` added have the last kernel (the policy has settled there).
-    """
+    Built by [`add`][heartpole.optimum.days.DayKernels.add] for ``n = 0, 1, ...`` in turn, then
+    [`close`][heartpole.optimum.days.DayKernels.close]; a run of equal kernels is stored once. Days starting beyond
+    the last ``n`` added have the last kernel (the policy has settled there)."""
 
     def __init__(self) -> None:
         self._lengths, self._probs, self._earned = array("q"), array("d"), array("d")
@@ -69,7 +69,7 @@ class DayKernels:
         return len(self._rows) - 1
 
     def add(self, lengths: np.ndarray, earned: np.ndarray) -> None:
-        """Add the kernel of days starting at the next ``n`` (see :func:`day_kernel`)."""
+        """Add the kernel of days starting at the next ``n`` (see [`day_kernel`][heartpole.optimum.days.day_kernel])."""
         if self._days is not None and all(np.array_equal(a, b) for a, b in zip(self._days, (lengths, earned))):
             self._rows.append(self._rows[-1])  # the same days as the last n: the same kernel
             return
@@ -101,7 +101,7 @@ class DayKernels:
         return self.lengths[part], self.probs[part], self.earned[part]
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, Kernel]:
-        """The frozen kernels as :func:`_episode_sums` takes them."""
+        """The frozen kernels as `_episode_sums` takes them."""
         if self.first is None:
             raise ValueError("close the DayKernels before using them")
         return self.lengths, self.probs, self.earned, self.starts, self.rows, self.first

@@ -19,21 +19,23 @@ if TYPE_CHECKING:
     from heartpole.dynamics import Dynamics
 
 DRINKING_ACTIONS = ("do_nothing", "drink_coffee", "drink_beer", "sleep")
+"""The actions the drinking grid solves over, in v0's order."""
 NEVER = -1e9
 """The value of an action that leaves the grid (or of staying awake at the last half-hour awake)."""
 
 
 @dataclass(frozen=True)
 class DrinkingSolution:
-    """A grid policy for a variant without heart-attack risk, where coffee and beer pay (:func:`solve_drinking`).
+    """A grid policy for a variant without heart-attack risk, where coffee and beer pay
+    ([`solve_drinking`][heartpole.optimum.drinking.solve_drinking]).
 
     Not a certified optimum: its score, measured through the evaluator, is a lower bound on what drinking
     can reach. ``start_value`` is the grid's best ``E[work - rate * time]`` over ``sweeps`` decisions from
     the episode's start (waking alertness, no alcohol); with ``sweeps == max_steps`` it is the whole
-    episode's, end-game included, and :attr:`rate_bound` bounds every policy's ``E[work] / E[time]``, as far
-    as the grid is exact. ``q`` holds each action's
-    value of :data:`DRINKING_ACTIONS` on the grid; the policy picks the best by bilinear interpolation.
-    """
+    episode's, end-game included, and [`rate_bound`][heartpole.optimum.drinking.DrinkingSolution.rate_bound] bounds
+    every policy's ``E[work] / E[time]``, as far as the grid is exact. ``q`` holds each action's value of
+    [`DRINKING_ACTIONS`][heartpole.optimum.drinking.DRINKING_ACTIONS] on the grid; the policy picks the best by
+    bilinear interpolation."""
 
     params: Params
     rate: float
@@ -55,12 +57,12 @@ class DrinkingSolution:
         return self.rate + max(self.start_value, 0.0) / self.params.max_steps
 
     def policy(self, dynamics: Dynamics) -> Callable[[np.ndarray], np.ndarray]:
-        """This solution as a :data:`~heartpole.policies.Policy` for ``dynamics`` (v0's four actions)."""
+        """This solution as a [`Policy`][heartpole.policies.Policy] for ``dynamics`` (v0's four actions)."""
         return _DrinkingPolicy(self, [dynamics.action_index(name) for name in DRINKING_ACTIONS])
 
 
 class _DrinkingPolicy:
-    """The greedy action of a :class:`DrinkingSolution` at each observation."""
+    """The greedy action of a [`DrinkingSolution`][heartpole.optimum.drinking.DrinkingSolution] at each observation."""
 
     name = "drinking-dp"
 
@@ -94,7 +96,8 @@ def solve_drinking(
     """Value iteration for ``E[work - rate * time]`` with free drinks (no heart-attack risk), on a drift-free grid.
 
     The state is (alertness, intoxication, half-hours awake); hypertension is left out because it costs
-    nothing when ``heart_attack_proclivity * heart_attack_penalty == 0``. The grid (:class:`DrinkingGrid`)
+    nothing when ``heart_attack_proclivity * heart_attack_penalty == 0``. The grid
+    ([`DrinkingGrid`][heartpole.optimum.drinking.DrinkingGrid])
     follows the dynamics without interpolating them: alertness is stored as alertness plus the drain so
     far, which a half-hour does not change, and intoxication on a geometric grid that a half-hour's and a
     sleep's fading map onto itself. Only the drinks' uniform effects and the waking draw are integrated
@@ -114,7 +117,7 @@ def solve_drinking(
         max_awake: half-hours awake after which the policy always sleeps.
 
     Raises:
-        NotCoveredError: if heart attacks cost anything (use :func:`solve` there).
+        NotCoveredError: if heart attacks cost anything (use `solve` there).
         ValueError: a grid that does not fit the actions' ranges.
     """
     if params.heart_attack_proclivity * params.heart_attack_penalty != 0:
@@ -136,11 +139,10 @@ def drinking_rule_value(
     """``(E[work], E[time])`` of a fixed rule over ``decisions`` decisions from the episode's start, on the grid.
 
     ``rule(alertness, intoxication, t)`` gets arrays of grid states and returns the index of the action in
-    :data:`DRINKING_ACTIONS` order; it must only take actions the grid covers. This is how the grid is
-    checked against the env's own dynamics (the evaluator's episodes of the same rule with
-    ``max_steps=decisions`` agree within their interval).
-    ``grid``: :func:`solve_drinking`'s grid arguments.
-    """
+    [`DRINKING_ACTIONS`][heartpole.optimum.drinking.DRINKING_ACTIONS] order; it must only take actions the grid
+    covers. This is how the grid is checked against the env's own dynamics (the evaluator's episodes of the same rule
+    with ``max_steps=decisions`` agree within their interval). ``grid``:
+    [`solve_drinking`][heartpole.optimum.drinking.solve_drinking]'s grid arguments."""
     if params.heart_attack_proclivity * params.heart_attack_penalty != 0:
         raise NotCoveredError("drinking_rule_value leaves hypertension out: it needs heart_attack_proclivity=0")
     model = DrinkingGrid(params, **grid)
@@ -163,7 +165,8 @@ def drinking_rule_value(
 
 
 class DrinkingGrid:
-    """:func:`solve_drinking`'s drift-free discretisation of (alertness, intoxication, half-hours awake).
+    """[`solve_drinking`][heartpole.optimum.drinking.solve_drinking]'s drift-free discretisation of (alertness,
+    intoxication, half-hours awake).
 
     * **Alertness** is stored as ``b = alertness + drain(t)``, with ``drain(t)`` the alertness a day has lost
       after ``t`` half-hours awake: a half-hour of work does not change ``b``, so no interpolation smears

@@ -34,8 +34,9 @@ def check_no_drinks(params: Params, rate: float | None = None) -> dict[str, floa
 
     With the score ``W / T`` and ``T >= max_steps``, a policy with drinks beats the no-drink optimal rate
     ``lam`` (ratio of expectations) only if ``E[W - lam T] > max_steps * floor * E[drinks]``: the drinks
-    must buy more than ``max_steps * floor`` units of work each (17.9 on v0). :func:`check_beer` and
-    :func:`check_coffee` show they cannot.
+    must buy more than ``max_steps * floor`` units of work each (17.9 on v0).
+    [`check_beer`][heartpole.optimum.drinks.check_beer] and [`check_coffee`][heartpole.optimum.drinks.check_coffee] show
+    they cannot.
 
     Args:
         params: the variant's numbers.
@@ -77,11 +78,13 @@ def check_beer(params: Params) -> dict[str, float]:
 
 
 def check_coffee(params: Params, rate: float) -> dict[str, float]:
-    """Coffee never pays, by the solver: :func:`coffee_check` finds no state where a coffee beats the optimum.
+    """Coffee never pays, by the solver: [`coffee_check`][heartpole.optimum.drinks.coffee_check] finds no state where a
+    coffee beats the optimum.
 
     By the verification theorem of finite-horizon dynamic programming, a value function that no action
     improves in any state is optimal: no policy gains by coffee in the states checked (alertness in
-    :data:`COFFEE_CHECK_ALERTNESS`, every ``t`` awake and number of decisions left).
+    [`COFFEE_CHECK_ALERTNESS`][heartpole.optimum.drinks.COFFEE_CHECK_ALERTNESS], every ``t`` awake and number of
+    decisions left).
 
     Raises:
         NotCoveredError: if a coffee gains somewhere.
@@ -99,7 +102,7 @@ def check_coffee(params: Params, rate: float) -> dict[str, float]:
 
 
 COFFEE_CHECK_ALERTNESS = (-3.0, 5.0)
-"""Alertness range in which :func:`coffee_check` tests every state."""
+"""Alertness range in which [`coffee_check`][heartpole.optimum.drinks.coffee_check] tests every state."""
 
 
 def coffee_check(params: Params, rate: float, charge: float, step: float = 0.01) -> float:
@@ -107,11 +110,10 @@ def coffee_check(params: Params, rate: float, charge: float, step: float = 0.01)
 
     A backward pass over an alertness grid (``step`` apart, covering the checked range and a coffee's +1
     above it) and ``t`` awake maximises ``E[work - rate * time]`` without drinks; in every state with
-    alertness in :data:`COFFEE_CHECK_ALERTNESS` and every number of decisions left it compares a coffee
-    (``alertness + U(0, 1)``, the trapezoid rule over the grid, minus ``charge``) with the best no-drink
-    choice. Returns the largest ``coffee - best`` seen: negative means coffee never pays. The pass stops
-    once its values have settled (:class:`~.common.Settling`): further ``n`` only repeat the same gains.
-    """
+    alertness in [`COFFEE_CHECK_ALERTNESS`][heartpole.optimum.drinks.COFFEE_CHECK_ALERTNESS] and every number of
+    decisions left it compares a coffee (``alertness + U(0, 1)``, the trapezoid rule over the grid, minus ``charge``)
+    with the best no-drink choice. Returns the largest ``coffee - best`` seen: negative means coffee never pays. The
+    pass stops once its values have settled (`Settling`): further ``n`` only repeat the same gains."""
     low, high = COFFEE_CHECK_ALERTNESS
     per_unit = int(round(1.0 / step))
     grid = np.round(np.arange(low - 1.0, high + 1.0 + step / 2, step), 10)

@@ -175,7 +175,8 @@ def solve_people(
 
     Args:
         people: a finite cohort, or a population's name (``"default"``).
-        env_id, env_kwargs: the env whose parameters each person changes (a person's fields win).
+        env_id: the env whose parameters each person changes (a person's fields win).
+        env_kwargs: that env's keyword arguments.
         processes: worker processes (default: 2, or 1 on a one-core machine).
         progress: called as ``progress(done, total)`` after each distinct person.
 

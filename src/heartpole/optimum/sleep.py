@@ -2,10 +2,10 @@
 
 State ``(decisions left n, waking alertness w, half-hours awake t)``, ``w`` on a midpoint grid. For a rate
 ``lam`` the program maximises ``E[work - lam * time]``; ``lam <- E[work] / E[time]`` of its policy until it
-repeats. The backward pass stops where the policy has settled (:class:`~.common.Settling`): from there on
+repeats. The backward pass stops where the policy has settled (`Settling`): from there on
 the decisions no longer depend on ``n``, the expected work and time grow by a fixed amount a decision, and
 the thresholds of the last ``n`` serve every ``n`` beyond. Time and memory then grow with the horizon only
-through :func:`~.days.episode_outcome`'s day-by-day pass; where the policy never settles (nearly
+through `episode_outcome`'s day-by-day pass; where the policy never settles (nearly
 deterministic days) the pass runs to ``max_steps``, still in memory linear in it.
 """
 
@@ -159,7 +159,8 @@ class _DayModel:
         )
 
     def follow(self, sleeps: Callable[[np.ndarray, np.ndarray, int], np.ndarray]) -> DayKernels:
-        """The days of the policy that sleeps where ``sleeps(alertness, t, n)`` (see :func:`sleep_rule_value`)."""
+        """The days of the policy that sleeps where ``sleeps(alertness, t, n)`` (see
+        [`sleep_rule_value`][heartpole.optimum.sleep.sleep_rule_value])."""
         grid, awake, steps = len(self.wake), self.awake, self.steps
         alertness = self.wake[:, None] - self.drained[None, :]
         t = np.arange(awake)

@@ -1,4 +1,5 @@
-"""The solved optimum of a variant (:class:`OptimumSolution`), the public entry points, and the cache."""
+"""The solved optimum of a variant ([`OptimumSolution`][heartpole.optimum.solution.OptimumSolution]), the public
+entry points, and the cache."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ class OptimumSolution:
 
     Attributes:
         env_id, env_kwargs: the env solved.
-        params: its :class:`~heartpole.model.Params`.
+        params: its [`Params`][heartpole.model.Params].
         grid: midpoint-grid points of the waking alertness.
         rate: Dinkelbach's optimal ``E[work] / E[time]`` on the grid.
         expected_score: the exact ``E[work / time]`` of the grid policy.
@@ -39,14 +40,16 @@ class OptimumSolution:
         error_bound: ``|expected_return(grid) - expected_return(grid // 2)|``, the grid's error bound (the
             midpoint rule converges as ``1/grid**2``, so the fine grid's error is about a third of it).
         expected_sleeps: mean sleeps per episode of the optimal policy.
-        drink_floor: expected return each drink costs at least (:func:`drink_floor`).
+        drink_floor: expected return each drink costs at least
+            (`drink_floor`).
         coffee_best_gain: the most a coffee gains over the no-drink optimum in any state checked, in units of
-            work (:func:`coffee_check`; negative: coffee never pays).
+            work (`coffee_check`; negative: coffee never pays).
         thresholds: ``(rows, max_awake)`` alertness thresholds: with ``n`` decisions left and
             ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
             Far from the end the policy settles into a stationary one; the rows stop there and
-            ``n >= rows`` uses the last row (:meth:`thresholds_at` and :meth:`sleeps` do). About 1,000 rows
-            on v0 whatever the horizon (``max_steps + 1`` where the policy never settles).
+            ``n >= rows`` uses the last row ([`thresholds_at`][heartpole.optimum.solution.OptimumSolution.thresholds_at]
+            and [`sleeps`][heartpole.optimum.solution.OptimumSolution.sleeps] do). About 1,000 rows on v0 whatever the
+            horizon (``max_steps + 1`` where the policy never settles).
     """
 
     env_id: str
@@ -69,7 +72,8 @@ class OptimumSolution:
         return int(self.thresholds.shape[1])
 
     def thresholds_at(self, decisions_left: int | np.ndarray) -> np.ndarray:
-        """The rows of :attr:`thresholds` for ``decisions_left`` (any of 0..max_steps; shape ``(..., max_awake)``)."""
+        """The rows of `thresholds` for ``decisions_left``
+        (any of 0..max_steps; shape ``(..., max_awake)``)."""
         return self.thresholds[self._row(decisions_left)]
 
     def sleeps(
@@ -87,8 +91,9 @@ class OptimumSolution:
         return np.clip(np.asarray(decisions_left, dtype=np.int64), 0, len(self.thresholds) - 1)
 
     def within(self, interval: tuple[float, float]) -> bool:
-        """Whether :attr:`expected_return` lies in ``interval`` (an evaluator's 95% interval, say) widened by
-        the grid's :attr:`error_bound` on both sides."""
+        """Whether `expected_return` lies in
+        ``interval`` (an evaluator's 95% interval, say) widened by the grid's
+        `error_bound` on both sides."""
         low, high = interval
         return bool(low - self.error_bound <= self.expected_return <= high + self.error_bound)
 
@@ -122,7 +127,7 @@ class OptimumSolution:
 
     @classmethod
     def load(cls, directory: str | Path) -> OptimumSolution:
-        """Read a solution saved by :meth:`save`.
+        """Read a solution saved by [`save`][heartpole.optimum.solution.OptimumSolution.save].
 
         Raises:
             FileNotFoundError: a missing file.
@@ -209,7 +214,7 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
     ``~/.cache/heartpole``, under ``optimum/<hash of the parameters and solver version>/``.
 
     Raises:
-        NotCoveredError, ValueError: as :func:`solve`.
+        NotCoveredError, ValueError: as [`solve`][heartpole.optimum.solution.solve].
     """
     from heartpole.registry import env_dynamics
 
@@ -220,7 +225,8 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
 def optimum_for(
     dynamics: Dynamics, env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None
 ) -> OptimumSolution:
-    """:func:`optimum` for a :class:`~heartpole.dynamics.Dynamics` (``env_id`` and ``env_kwargs`` label it)."""
+    """[`optimum`][heartpole.optimum.solution.optimum] for a [`Dynamics`][heartpole.dynamics.Dynamics] (``env_id``
+    and ``env_kwargs`` label it)."""
     check_covered(env_id, dynamics)
     solution = _cached(dynamics.params, str(cache_dir()))
     if isinstance(solution, NotCoveredError):
@@ -229,7 +235,7 @@ def optimum_for(
 
 
 def available(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> OptimumSolution | None:
-    """:func:`optimum`, or ``None`` for a variant the solver does not cover."""
+    """[`optimum`][heartpole.optimum.solution.optimum], or ``None`` for a variant the solver does not cover."""
     try:
         return optimum(env_id, env_kwargs)
     except NotCoveredError:
@@ -261,7 +267,7 @@ def _cached(params: Params, cache_root: str) -> OptimumSolution | NotCoveredErro
 
 
 def cache_dir() -> Path:
-    """Where solutions are cached on disk (see :func:`optimum`)."""
+    """Where solutions are cached on disk (see [`optimum`][heartpole.optimum.solution.optimum])."""
     if os.environ.get("HEARTPOLE_CACHE_DIR"):
         return Path(os.environ["HEARTPOLE_CACHE_DIR"])
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")

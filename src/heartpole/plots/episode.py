@@ -60,7 +60,7 @@ class EpisodeTrace:
 def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = None) -> int:
     """The action ``policy`` chooses for one observation (policies work on batches).
 
-    ``decisions_left`` goes to a policy that ``needs_decisions_left`` (see :mod:`heartpole.policies`).
+    ``decisions_left`` goes to a policy that ``needs_decisions_left`` (see [`heartpole.policies`][heartpole.policies]).
     """
     from heartpole.policies import act_batch
 

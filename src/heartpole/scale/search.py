@@ -32,6 +32,7 @@ from heartpole.scale.trials import (
 OBJECTIVE = "objective"
 SEARCH_NAME = "search"
 SEARCH_SETTINGS_FILE = "search.json"
+"""The search's settings in its folder (what a resumed search checks it continues)."""
 TRIALS_FILE = "trials.csv"
 PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
@@ -139,7 +140,7 @@ class SearchSettings:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SearchSettings:
-        """The inverse of :meth:`to_dict`."""
+        """The inverse of [`to_dict`][heartpole.scale.search.SearchSettings.to_dict]."""
         values = dict(data)
         values["base"] = training.TrainConfig.from_dict(values["base"])
         values["seeds"] = tuple(int(s) for s in values["seeds"])
@@ -147,7 +148,7 @@ class SearchSettings:
 
 
 def can_resume(folder: str | os.PathLike[str]) -> bool:
-    """Whether ``folder`` holds a search that :func:`tune_search` can resume."""
+    """Whether ``folder`` holds a search that [`tune_search`][heartpole.scale.search.tune_search] can resume."""
     folder = Path(folder).resolve()
     return (folder / SEARCH_SETTINGS_FILE).is_file() and tune.Tuner.can_restore(str(folder / SEARCH_NAME))
 
@@ -156,7 +157,8 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
     """Check, before any trial runs, that a search may run in ``folder``; return it as an absolute ``Path``.
 
     With ``resume`` it must hold a search to continue. Otherwise it must be missing or empty, or, with
-    ``force``, hold an earlier search (its :data:`SEARCH_SETTINGS_FILE`), which :func:`tune_search` replaces
+    ``force``, hold an earlier search (its [`SEARCH_SETTINGS_FILE`][heartpole.scale.search.SEARCH_SETTINGS_FILE]), which
+    [`tune_search`][heartpole.scale.search.tune_search] replaces
     once the new search is done: ``force`` never removes anything else.
 
     Raises:
@@ -200,15 +202,16 @@ def tune_search(
     """Search hyperparameters with Optuna on Ray Tune; write the results into ``folder``; return them.
 
     ``folder`` (made absolute) receives ``search.json`` (the settings), ``search/`` (Ray Tune's experiment
-    state: what :func:`can_resume` and ``resume=True`` use), ``trials/<trial id>/`` (each trial's
-    :func:`heartpole.training.train_seeds` output), and at the end ``trials.csv`` (one row per trial),
-    ``best_preset.json`` (the best configuration, for ``heartpole train --preset``), ``search.png`` (the
-    objective per trial, when matplotlib is installed) and ``tune_summary.json``.
+    state: what [`can_resume`][heartpole.scale.search.can_resume] and ``resume=True`` use), ``trials/<trial id>/`` (each
+    trial's [`heartpole.training.train_seeds`][heartpole.training.runs.train_seeds] output), and at the end
+    ``trials.csv`` (one row per trial), ``best_preset.json`` (the best configuration, for ``heartpole train --preset``),
+    ``search.png`` (the objective per trial, when matplotlib is installed) and ``tune_summary.json``.
 
-    ``space`` defaults to :func:`default_space`; ``points_to_evaluate`` are tried first (Optuna enqueues
-    them). With ``resume``, the settings saved in ``folder`` are used and ``settings`` is ignored; finished
-    trials are kept, unfinished ones rerun, failed ones stay failed. ``folder`` is checked by
-    :func:`prepare_search_folder`; ``force`` replaces an earlier search once the new one is done.
+    ``space`` defaults to [`default_space`][heartpole.scale.search.default_space]; ``points_to_evaluate`` are tried
+    first (Optuna enqueues them). With ``resume``, the settings saved in ``folder`` are used and ``settings`` is
+    ignored; finished trials are kept, unfinished ones rerun, failed ones stay failed. ``folder`` is checked by
+    [`prepare_search_folder`][heartpole.scale.search.prepare_search_folder]; ``force`` replaces an earlier search once
+    the new one is done.
 
     Raises:
         AllTrialsFailedError: every trial failed (``tune_summary.json`` and ``trials.csv`` are still written).

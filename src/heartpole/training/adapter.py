@@ -53,7 +53,7 @@ class HeartPoleSB3VecEnv(VecEnv):
 
     Args:
         env_id: a HeartPole id with a native vector entry point (``HeartPole-v0``, ``HeartPole-v1``, or a
-            variant from :func:`heartpole.register_variant`).
+            variant from [`heartpole.register_variant`][heartpole.registry.register_variant]).
         num_envs: episodes stepped side by side.
         reward: the training reward (default: the env's own).
         env_kwargs: the env's keyword arguments (``max_steps``, ``heart_attack_proclivity``, ...).
@@ -114,7 +114,8 @@ class HeartPoleSB3VecEnv(VecEnv):
         return obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Remember the actions (one integer per env) for :meth:`step_wait`."""
+        """Remember the actions (one integer per env) for
+        [`step_wait`][heartpole.training.adapter.HeartPoleSB3VecEnv.step_wait]."""
         self._actions = np.asarray(actions).reshape(self.num_envs)  # the vector env validates the values
 
     def step_wait(self) -> VecEnvStepReturn:
@@ -159,7 +160,7 @@ class HeartPoleSB3VecEnv(VecEnv):
     def training_reward(
         self, env_reward: np.ndarray, before: np.ndarray, after: np.ndarray, info: Mapping[str, Any]
     ) -> np.ndarray:
-        """The reward of :attr:`reward` for one step, from the env's reward, observations and ``info``.
+        """The reward of `reward` for one step, from the env's reward, observations and ``info``.
 
         ``before`` and ``after`` are the observations around the step (``after`` is the last observation
         of an episode that just ended); their ``time_elapsed`` difference is the half-hours the step took.

@@ -47,7 +47,7 @@ def staged_output(out: str | os.PathLike[str], force: bool = False) -> Iterator[
     On any error or interruption (Ctrl-C, and SIGTERM or SIGHUP under the ``heartpole`` command) the
     temporary folder is removed and ``out`` is left as it was, so a failed run never leaves half its files.
     With ``force``, a previous run in ``out`` is replaced, only once the new one is complete (see
-    :func:`heartpole.files.staged_folder`).
+    [`heartpole.files.staged_folder`][heartpole.files.staged_folder]).
     """
     out = check_output_folder(out, force)
     with files.staged_folder(out) as staging:

@@ -1,4 +1,5 @@
-"""Training configurations: :class:`TrainConfig`, the presets, preset files and the solved bars."""
+"""Training configurations: [`TrainConfig`][heartpole.training.presets.TrainConfig], the presets, preset files and
+the solved bars."""
 
 from __future__ import annotations
 
@@ -26,8 +27,9 @@ SOLVED_HEART_ATTACKS = V0_HEART_ATTACKS_AT_MOST
 SOLVED_SCORE = V0_SCORE_AT_LEAST
 """HeartPole-v0's score bar ([`heartpole.solved`][heartpole.solved] defines it)."""
 ScoreRate: TypeAlias = Literal["best", "auto"] | float
-"""How a preset sets the shaped reward's rate: ``"best"`` (:data:`RATE_SHARE_OF_BEST` of the env's best known
-score), ``"auto"`` (estimated while training) or the rate itself. See :func:`preset_config`."""
+"""How a preset sets the shaped reward's rate: ``"best"``
+([`RATE_SHARE_OF_BEST`][heartpole.training.presets.RATE_SHARE_OF_BEST] of the env's best known score), ``"auto"``
+(estimated while training) or the rate itself. See [`preset_config`][heartpole.training.presets.preset_config]."""
 RATE_SHARE_OF_BEST = 0.98
 """The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
 0.68 for v1."""
@@ -39,7 +41,7 @@ RATE_SHARE_OF_BEST = 0.98
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """Everything a training run depends on; :func:`train_run` records it in ``heartpole.json``.
+    """Everything a training run depends on; `train_run` records it in ``heartpole.json``.
 
     Attributes:
         algo: ``"ppo"``, ``"a2c"`` or ``"dqn"``.
@@ -95,7 +97,8 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
-        """The inverse of :meth:`to_dict` (``reward["description"]`` is ignored); unknown keys raise ValueError."""
+        """The inverse of [`to_dict`][heartpole.training.presets.TrainConfig.to_dict] (``reward["description"]`` is
+        ignored); unknown keys raise ValueError."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
@@ -146,6 +149,7 @@ DEFAULT_HYPERPARAMETERS: Mapping[str, Mapping[str, Any]] = {
         "exploration_final_eps": 0.01,
     },
 }
+"""Each algorithm's hyperparameters when no preset gives them (the comments say why each was chosen)."""
 
 PRESETS = ("default", "tutorial")
 PRESET_HELP = {
@@ -155,9 +159,11 @@ PRESET_HELP = {
 DEFAULT_ALGO = {"default": "ppo", "tutorial": "dqn"}
 DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
 Backend: TypeAlias = Literal["sb3", "jax"]
-"""``"sb3"``: Stable-Baselines3 (PyTorch); ``"jax"``: :mod:`heartpole.jax.ppo`, the whole run compiled."""
+"""``"sb3"``: Stable-Baselines3 (PyTorch); ``"jax"``: [`heartpole.jax.ppo`][heartpole.jax.ppo], the whole run
+compiled."""
 BACKENDS: tuple[Backend, ...] = ("sb3", "jax")
-"""Where ``heartpole train`` runs: Stable-Baselines3, or PPO compiled with JAX (:mod:`heartpole.jax.ppo`)."""
+"""Where ``heartpole train`` runs: Stable-Baselines3, or PPO compiled with JAX
+([`heartpole.jax.ppo`][heartpole.jax.ppo])."""
 JAX_PPO_HYPERPARAMETERS: Mapping[str, Any] = {
     # The default preset's PPO with minibatches of 256 instead of 512: twice the gradient steps per env
     # step for the same arithmetic, which matters here because the JAX trainer's time goes into the
@@ -180,20 +186,22 @@ def preset_config(
     backend: str = "sb3",
     **overrides: Any,
 ) -> TrainConfig:
-    """The :class:`TrainConfig` of ``preset`` for ``algo`` (default: the preset's own), with ``overrides``.
+    """The [`TrainConfig`][heartpole.training.presets.TrainConfig] of ``preset`` for ``algo`` (default: the preset's
+    own), with ``overrides``.
 
     ``default`` trains on the shaped reward with VecNormalize and 16 envs, with the hyperparameters of
-    :data:`DEFAULT_HYPERPARAMETERS`; PPO is the one that solves HeartPole-v0. ``tutorial`` is the
-    tutorial's run: SB3's default hyperparameters, ``net_arch=[16, 16]``, the env's reward, no
-    normalisation, one env and 500,000 timesteps (DQN unless ``algo`` says otherwise).
+    [`DEFAULT_HYPERPARAMETERS`][heartpole.training.presets.DEFAULT_HYPERPARAMETERS]; PPO is the one that solves
+    HeartPole-v0. ``tutorial`` is the tutorial's run: SB3's default hyperparameters, ``net_arch=[16, 16]``, the env's
+    reward, no normalisation, one env and 500,000 timesteps (DQN unless ``algo`` says otherwise).
 
     ``score_rate`` is the shaped reward's rate (default preset only): ``"best"`` (default) is
-    :data:`RATE_SHARE_OF_BEST` of the trained env's best known score (0.32 for v0, 0.68 for v1; see
-    :func:`heartpole.registry.best_known_rate`), or ``"auto"`` where none is known; ``"auto"`` estimates
-    it while training; a number fixes it.
+    [`RATE_SHARE_OF_BEST`][heartpole.training.presets.RATE_SHARE_OF_BEST] of the trained env's best known score (0.32
+    for v0, 0.68 for v1; see [`heartpole.registry.best_known_rate`][heartpole.rates.best_known_rate]), or ``"auto"``
+    where none is known; ``"auto"`` estimates it while training; a number fixes it.
 
     ``backend="jax"`` gives the default preset's PPO as ``heartpole train --backend jax`` runs it:
-    :data:`JAX_PPO_HYPERPARAMETERS` for :data:`JAX_PPO_TIMESTEPS` steps.
+    [`JAX_PPO_HYPERPARAMETERS`][heartpole.training.presets.JAX_PPO_HYPERPARAMETERS] for
+    [`JAX_PPO_TIMESTEPS`][heartpole.training.presets.JAX_PPO_TIMESTEPS] steps.
 
     Raises:
         ValueError: an unknown preset, algorithm or backend, or a bad override.
@@ -240,7 +248,8 @@ def preset_config(
 def shaped_reward_rate(
     env_id: str, env_kwargs: Mapping[str, Any], score_rate: ScoreRate = "best"
 ) -> float | Literal["auto"]:
-    """The shaped reward's rate for ``env_id``: see :func:`preset_config`'s ``score_rate``."""
+    """The shaped reward's rate for ``env_id``: see [`preset_config`][heartpole.training.presets.preset_config]'s
+    ``score_rate``."""
     from heartpole.registry import best_known_rate, env_dynamics
 
     if score_rate == "auto":
@@ -255,7 +264,7 @@ def shaped_reward_rate(
 
 
 PRESET_FORMAT = "heartpole-preset/1"
-"""The ``format`` field of a preset file (:func:`save_preset`)."""
+"""The ``format`` field of a preset file ([`save_preset`][heartpole.training.presets.save_preset])."""
 
 
 def save_preset(config: TrainConfig, path: str | os.PathLike[str], **notes: Any) -> Path:
@@ -271,7 +280,8 @@ def save_preset(config: TrainConfig, path: str | os.PathLike[str], **notes: Any)
 
 
 def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
-    """The :class:`TrainConfig` of a preset file written by :func:`save_preset` (seed 0).
+    """The [`TrainConfig`][heartpole.training.presets.TrainConfig] of a preset file written by
+    [`save_preset`][heartpole.training.presets.save_preset] (seed 0).
 
     Raises:
         ValueError: the file is not JSON, not a preset file, or holds a bad configuration.

@@ -35,7 +35,7 @@ from heartpole.training.presets import TrainConfig
 __all__ = ["RunCallback", "TrainedModel", "LinearSchedule", "build_model", "train_model", "train_run", "train_seeds"]
 
 RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
-"""Called with each seed's summary (:func:`run_summary`) as it finishes."""
+"""Called with each seed's summary ([`run_summary`][heartpole.records.run_summary]) as it finishes."""
 
 # ------------------------------------------------------------------------------------------------------
 # training
@@ -43,7 +43,8 @@ RunCallback: TypeAlias = Callable[[dict[str, Any]], None]
 
 @dataclass
 class TrainedModel:
-    """What :func:`train_model` returns: the model, its VecNormalize (or ``None``), curve and timing."""
+    """What [`train_model`][heartpole.training.runs.train_model] returns: the model, its VecNormalize (or ``None``),
+    curve and timing."""
 
     model: BaseAlgorithm
     normalizer: VecNormalize | None
@@ -97,11 +98,11 @@ def train_run(
 
     Files: ``model.zip``, ``vecnormalize.pkl`` (when observations or rewards are normalised),
     ``heartpole.json`` (the configuration, timings and versions), ``learning_curve.csv`` and
-    ``evaluation.json`` (:func:`heartpole.evaluation.evaluate` of the saved model over ``eval_episodes``
-    episodes with ``eval_seed``, loaded back from the files by :func:`heartpole.policies.load_policy`, as
-    ``heartpole evaluate`` does). ``final_folder`` is where the files will end up if ``folder`` is a
-    staging folder (see :func:`staged_output`); the evaluation names the model by that path.
-    """
+    ``evaluation.json`` ([`heartpole.evaluation.evaluate`][heartpole.evaluation.evaluate] of the saved model over
+    ``eval_episodes`` episodes with ``eval_seed``, loaded back from the files by
+    [`heartpole.policies.load_policy`][heartpole.policies.load_policy], as ``heartpole evaluate`` does).
+    ``final_folder`` is where the files will end up if ``folder`` is a staging folder (see `staged_output`); the
+    evaluation names the model by that path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -149,7 +150,7 @@ def train_seeds(
     The summary lists every seed's figures and aggregates them across seeds with the interquartile mean and a 95%
     percentile-bootstrap interval over seeds ([`aggregate`][heartpole.records.aggregate]), and counts the seeds that
     meet the solved bar. ``on_run`` is called with each seed's summary as soon as it is done; ``final_folder`` is as for
-    :func:`train_run`.
+    [`train_run`][heartpole.training.runs.train_run].
     """
     if not seeds:
         raise ValueError("give at least one seed")
