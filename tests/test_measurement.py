@@ -110,9 +110,9 @@ def test_observation_and_space() -> None:
         (lambda: Measurement({}), "noise must map at least one variable name"),
         (lambda: Measurement(0.1), "noise must map"),
         (lambda: Measurement({1: 0.1}), "noise's keys must be variable names"),
-        (lambda: Measurement({"alertness": -0.1}), r"noise\['alertness'\] must be a finite number >= 0"),
-        (lambda: Measurement({"alertness": math.nan}), "finite number >= 0"),
-        (lambda: Measurement({"alertness": True}), "finite number >= 0"),
+        (lambda: Measurement({"alertness": -0.1}), r"noise\['alertness'\] \(a standard deviation\) must be"),
+        (lambda: Measurement({"alertness": math.nan}), r"finite number in \[0.0, inf\]"),
+        (lambda: Measurement({"alertness": True}), r"finite number in \[0.0, inf\]"),
         (lambda: Measurement({"alertness": 0.1}, every=0), "every must be an integer >= 1, got 0"),
         (lambda: Measurement({"alertness": 0.1}, every=1.5), "every must be an integer >= 1"),
         (

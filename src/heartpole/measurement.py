@@ -24,13 +24,12 @@ the schedule). Off by default: an env's ``measurement=None`` observes the state 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from heartpole.model import check_integer, is_number
+from heartpole.model import check_integer, check_number
 
 
 @dataclass(frozen=True, init=False)
@@ -59,8 +58,7 @@ class Measurement:
         for name, sd in noise.items():
             if not isinstance(name, str):
                 raise ValueError(f"noise's keys must be variable names, got {name!r}")
-            if not (is_number(sd) and math.isfinite(sd) and sd >= 0):
-                raise ValueError(f"noise[{name!r}] must be a finite number >= 0 (a standard deviation), got {sd!r}")
+            check_number(f"noise[{name!r}] (a standard deviation)", sd, 0.0)
         object.__setattr__(self, "noise", tuple((name, float(sd)) for name, sd in noise.items()))
         object.__setattr__(self, "every", check_integer("every", every, 1))
 

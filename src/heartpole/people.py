@@ -32,14 +32,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
 
-from heartpole.model import Params, check_keywords, is_number
+from heartpole.model import Params, check_keywords, check_number, check_pair
 
 TASK_FIELDS = ("max_steps", "heart_attack_penalty")
 """The fields of [`Params`][heartpole.model.Params] that belong to the task, not to a person."""
@@ -113,11 +112,11 @@ class Uniform:
 
 def _end(end: object) -> Value:
     """A range's end: a finite number or a pair of them (a tuple), else ``ValueError``."""
-    if is_number(end) and math.isfinite(end):
-        return end
-    if isinstance(end, (tuple, list)) and len(end) == 2 and all(is_number(x) and math.isfinite(x) for x in end):
+    if isinstance(end, (tuple, list)):
+        check_pair("a pair end of Uniform", end)
         return cast(tuple[float, float], tuple(end))
-    raise ValueError(f"Uniform's ends must be finite numbers or (low, high) pairs of them, got {end!r}")
+    check_number("Uniform's end (a finite number or a (low, high) pair of them)", end)
+    return cast(float, end)
 
 
 @dataclass(frozen=True, init=False)
