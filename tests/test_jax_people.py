@@ -92,7 +92,7 @@ def test_a_cohort_of_one_steps_exactly_as_that_persons_env() -> None:
 
 def test_a_distributions_person_runs_on_their_params_in_float32() -> None:
     """A distribution's person: the params equal an env's made with the drawn values (float32 arithmetic in
-    JAX: within float32 rounding), with the fixed field fixed and the task's numbers the env's."""
+    JAX: within relative 2e-6), with the fixed field fixed and the task's numbers the env's."""
     people = People(decay_rate=0.95, sleep_half_hours=Uniform(10, 20), wake_alertness=Uniform((0.5, 1.1), (0.8, 1.5)))
     env, params = make("HeartPole-v0", people=people, heart_attack_penalty=50.0)
     _, states = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.key(0), 16), params)
@@ -107,7 +107,8 @@ def test_a_distributions_person_runs_on_their_params_in_float32() -> None:
         expected = EnvParams.from_dynamics(Dynamics(params=own))
         mine = env.person_params(state, params)
         for a, b in zip(jax.tree_util.tree_leaves(mine), jax.tree_util.tree_leaves(expected)):
-            np.testing.assert_allclose(a, b, rtol=2e-7, atol=0)
+            # rest_fade: the float32 decay rate (relative error 6e-8) to a power up to 20, so within 2e-6
+            np.testing.assert_allclose(a, b, rtol=2e-6, atol=0)
 
 
 # ------------------------------------------------------------------------------------------------------
