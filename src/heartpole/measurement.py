@@ -157,7 +157,7 @@ class Sensor:
         carried = xp.where(now[:, None], reading, seen)
         return xp.where(measured, carried, true), xp.where(now, xp.zeros_like(older), older)
 
-    def observation(self, seen: np.ndarray, age: np.ndarray, xp: Any = np) -> np.ndarray:
+    def observation(self, seen: Any, age: Any, xp: Any = np) -> Any:
         """The observation: ``seen``, then the age column if [`has_age`][heartpole.measurement.Sensor.has_age]
         (float32, as the env's), on the array namespace ``xp`` (``numpy`` or ``jax.numpy``)."""
         if not self.has_age:

@@ -24,7 +24,8 @@ from heartpole import model
 from heartpole.dynamics import Dynamics
 from heartpole.jax.population import Population
 from heartpole.jax.spaces import Box, Discrete
-from heartpole.model import ActionEffects, StepTables, TableFields, table_fields
+from heartpole.measurement import Measurement, Sensor
+from heartpole.model import TIME_ELAPSED, ActionEffects, StepTables, TableFields, table_fields
 from heartpole.people import People, Sample
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
@@ -42,6 +43,10 @@ class EnvState:
     time: jax.Array
     person: jax.Array = field(default_factory=lambda: jnp.int32(-1))
     person_values: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
+    seen: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
+    """With ``measurement``: the variables as last measured (float32, observation order); else empty."""
+    age: jax.Array = field(default_factory=lambda: jnp.float32(0))
+    """With ``measurement``: the half-hours since ``seen`` was measured."""
 
 
 @jax.tree_util.register_dataclass
@@ -133,15 +138,23 @@ class HeartPoleJax:
         observe_traits: append the person's traits ([`People.traits`][heartpole.people.People.traits]) to
             the observation (the observation space's bounds extended with
             [`People.trait_bounds`][heartpole.people.People.trait_bounds]).
+        measurement: noisy, sparse measurements ([`Measurement`][heartpole.measurement.Measurement]): the
+            observation shows the variables as measured (then the measurement's age if it is taken less
+            often than every half-hour), the state keeps the truth (``state.variables``) and the last
+            reading (``state.seen``, ``state.age``). Its noise comes from a key folded off the step's key.
 
     Raises:
         ValueError: an unknown population name, ``observe_traits`` not a bool, or ``observe_traits=True``
             without people.
-        TypeError: ``people`` of another type.
+        TypeError: ``people`` or ``measurement`` of another type.
     """
 
     def __init__(
-        self, dynamics: Dynamics | None = None, people: People | str | None = None, observe_traits: bool = False
+        self,
+        dynamics: Dynamics | None = None,
+        people: People | str | None = None,
+        observe_traits: bool = False,
+        measurement: Measurement | None = None,
     ) -> None:
         self.dynamics = Dynamics() if dynamics is None else dynamics
         self.people = People.resolve(people)
@@ -151,6 +164,10 @@ class HeartPoleJax:
             raise ValueError("observe_traits=True needs people (a population whose traits to observe), got None")
         self.observe_traits = observe_traits
         self.population = None if self.people is None else Population(self.people, self.dynamics)
+        if measurement is not None and not isinstance(measurement, Measurement):
+            raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
+        self.measurement = measurement
+        self.sensor = None if measurement is None else measurement.sensor(self.dynamics.names)
         self.num_variables = len(self.dynamics.variables)
         self._num_actions = len(self.dynamics.actions)
         # static: the Shape fields fix the step's loops (how many drowsy half-hours to unroll)
@@ -161,10 +178,11 @@ class HeartPoleJax:
     def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
         """The JAX env of a registered HeartPole id (v0, v1, or a `heartpole.register_variant` one),
         made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...),
-        ``people`` and ``observe_traits`` among them."""
+        ``people``, ``observe_traits`` and ``measurement`` among them."""
         from heartpole.policies import env_dynamics
 
-        mine = {name: env_kwargs.pop(name) for name in ("people", "observe_traits") if name in env_kwargs}
+        ours = ("people", "observe_traits", "measurement")
+        mine = {name: env_kwargs.pop(name) for name in ours if name in env_kwargs}
         return cls(env_dynamics(env_id, env_kwargs), **mine)
 
     # -- gymnax's Environment API ----------------------------------------------------------------------
@@ -216,6 +234,9 @@ class HeartPoleJax:
         uniform = jax.random.uniform(key, (), jnp.float32)
         tables = self._tables(self.person_params(state, params))
         state = dataclasses.replace(state, variables=jnp.stack(MODEL.initial_state(zeros, uniform, tables)))
+        if self.sensor is not None:
+            state = dataclasses.replace(state, seen=state.variables)
+            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, jnp.float32(jnp.inf))
         return self.get_obs(state), state
 
     def step_env(
@@ -231,6 +252,9 @@ class HeartPoleJax:
             s, self._effects(mine, action), tuple(u[i] for i in range(n + 2)), self._tables(mine)
         )
         state = dataclasses.replace(state, variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
+        if self.sensor is not None:
+            passed = state.variables[TIME_ELAPSED] - s[TIME_ELAPSED]
+            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, passed)
         info = {
             "discount": self.discount(state, params),
             "heart_attack": attack,
@@ -244,10 +268,22 @@ class HeartPoleJax:
 
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
         """The observation: the state variables in observation order (float32), then the person's traits
-        with ``observe_traits``."""
+        with ``observe_traits``; with ``measurement``, the variables as measured, then their age if measured
+        less often than every half-hour, then the traits."""
+        obs = state.variables
+        if self.sensor is not None:
+            obs = self.sensor.observation(state.seen[None], state.age[None], jnp)[0]
         if self.observe_traits and self.population is not None:
-            return jnp.concatenate([state.variables, state.person_values[self.population.trait_index]])
-        return state.variables
+            return jnp.concatenate([obs, state.person_values[self.population.trait_index]])
+        return obs
+
+    @staticmethod
+    def _measure(sensor: Sensor, key: jax.Array, state: EnvState, passed: jax.Array) -> EnvState:
+        """``state`` with a new measurement where one is due ([`Sensor.read`][heartpole.measurement.Sensor.read],
+        one standard normal per measured variable from ``key``)."""
+        noise = jax.random.normal(key, (1, len(sensor.columns)), jnp.float32)
+        seen, age = sensor.read(state.variables[None], state.seen[None], state.age[None], passed[None], noise, jnp)
+        return dataclasses.replace(state, seen=seen[0], age=age[0])
 
     def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
         """gymnax 1.0's observation hook: `get_obs`."""
@@ -279,6 +315,8 @@ class HeartPoleJax:
 
         box = observation_space(self.dynamics)
         low, high = box.low, box.high
+        if self.sensor is not None:
+            low, high = self.sensor.space(low, high)
         if self.observe_traits and self.people is not None:
             trait_low, trait_high = self.people.trait_bounds()
             low, high = np.concatenate([low, trait_low]), np.concatenate([high, trait_high])
@@ -296,6 +334,8 @@ class HeartPoleJax:
             "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32),
             "person": Box(-1, max(len(self.people.cohort) - 1, -1) if self.people else -1, (), jnp.int32),
             "person_values": Box(-np.inf, np.inf, (columns,), jnp.float32),
+            "seen": Box(-np.inf, np.inf, (0 if self.sensor is None else self.num_variables,), jnp.float32),
+            "age": Box(0, np.inf, (), jnp.float32),
         }
 
     # -- people ----------------------------------------------------------------------------------------
@@ -348,6 +388,6 @@ class HeartPoleJax:
 
 def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:
     """``(env, env_params)`` for a HeartPole id, like ``gymnax.make``; ``env_kwargs`` as for ``gymnasium.make``,
-    with ``people`` and ``observe_traits`` (see [`HeartPoleJax`][heartpole.jax.env.HeartPoleJax])."""
+    with ``people``, ``observe_traits`` and ``measurement`` (see [`HeartPoleJax`][heartpole.jax.env.HeartPoleJax])."""
     env = HeartPoleJax.from_id(env_id, **env_kwargs)
     return env, env.default_params
