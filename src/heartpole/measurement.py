@@ -135,8 +135,8 @@ class Sensor:
         if true.ndim != 2 or true.shape[1] != self.size:
             raise ValueError(f"true observations must have shape (n, {self.size}), got {true.shape}")
         noise = rng.standard_normal((len(true), len(self.columns)))
-        as_float = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
-        return self.read(true, as_float(seen), as_float(age), as_float(passed), noise, np)
+        seen, age, passed = (np.asarray(x, dtype=np.float64) for x in (seen, age, passed))
+        return self.read(true, seen, age, passed, noise, np)
 
     def read(self, true: Any, seen: Any, age: Any, passed: Any, noise: Any, xp: Any) -> tuple[Any, Any]:
         """`step` with the noise given, on any array namespace ``xp`` (``numpy``, ``jax.numpy``): the one
