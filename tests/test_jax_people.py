@@ -321,3 +321,17 @@ def test_jax_ppo_trains_on_people(observe_traits: bool) -> None:
     done = np.asarray(ended[0])
     assert done.sum() == 2 * 128 * 8 // 64 and np.isfinite(np.asarray(ended[1])[done]).all()
     assert len(set(np.asarray(runner.env_state.person).tolist())) > 1
+
+
+def test_any_variant_takes_people() -> None:
+    """HeartPole-v1 (seven variables, eight actions, THC fading at its own rate): each person's params equal
+    those of v1 made with their values."""
+    people = People.default()
+    env, params = make("HeartPole-v1", people=people)
+    _, states = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.key(2), 8), params)
+    for i in range(8):
+        state = jax.tree_util.tree_map(lambda x, i=i: x[i], states)
+        own = make("HeartPole-v1", **people.cohort[int(state.person)].values())[1]
+        assert leaves_equal(env.person_params(state, params), own)
+    obs, *_ = jax.vmap(env.step, in_axes=(0, 0, None, None))(jax.random.split(jax.random.key(3), 8), states, 7, params)
+    assert obs.shape == (8, 7)
