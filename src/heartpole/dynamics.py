@@ -119,7 +119,8 @@ def _check_float32(effects: Sequence[ActionEffects], tables: StepTables) -> None
 
 def _fade(variable: Variable, params: Params) -> float:
     factor = variable.decay_factor(params)
-    return 1.0 if factor is None else float(factor)
+    # not float(factor): heartpole.jax runs step_tables on arrays of people's decay rates
+    return 1.0 if factor is None else factor
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -132,19 +133,34 @@ class Sensor:
         if true.ndim != 2 or true.shape[1] != self.size:
             raise ValueError(f"true observations must have shape (n, {self.size}), got {true.shape}")
         noise = rng.standard_normal((len(true), len(self.columns)))
-        older = np.asarray(age, dtype=np.float64) + np.asarray(passed, dtype=np.float64)
-        now = older >= self.every
-        out = true.copy()
-        reading = true[:, self.columns] + self.sd * noise
-        out[:, self.columns] = np.where(now[:, None], reading, np.asarray(seen, dtype=np.float64)[:, self.columns])
-        return out, np.where(now, 0.0, older)
+        seen, age, passed = (np.asarray(x, dtype=np.float64) for x in (seen, age, passed))
+        return self.read(true, seen, age, passed, noise, np)
 
-    def observation(self, seen: np.ndarray, age: np.ndarray) -> np.ndarray:
+    def read(self, true: Any, seen: Any, age: Any, passed: Any, noise: Any, xp: Any) -> tuple[Any, Any]:
+        """`step` with the noise given, on any array namespace ``xp`` (``numpy``, ``jax.numpy``): the one
+        definition of a reading, which `step` runs on NumPy and ``heartpole.jax`` traces.
+
+        ``noise`` is ``(n, m)`` standard normals, one per env and measured variable (in ``columns``' order);
+        the other arguments and the result are `step`'s, in ``xp``'s arrays and float type.
+        """
+        measured = np.zeros(self.size, dtype=bool)
+        measured[self.columns] = True
+        sd = np.zeros(self.size)
+        sd[self.columns] = self.sd
+        position = np.zeros(self.size, dtype=np.int64)  # each column's noise (an unmeasured one's is unused)
+        position[self.columns] = np.arange(len(self.columns))
+        older = age + passed
+        now = older >= self.every
+        reading = true + xp.asarray(sd, dtype=true.dtype) * noise[:, position]
+        carried = xp.where(now[:, None], reading, seen)
+        return xp.where(measured, carried, true), xp.where(now, xp.zeros_like(older), older)
+
+    def observation(self, seen: Any, age: Any, xp: Any = np) -> Any:
         """The observation: ``seen``, then the age column if [`has_age`][heartpole.measurement.Sensor.has_age]
-        (float32, as the env's)."""
+        (float32, as the env's), on the array namespace ``xp`` (``numpy`` or ``jax.numpy``)."""
         if not self.has_age:
-            return np.asarray(seen, dtype=np.float32)
-        return np.concatenate([seen, np.asarray(age)[:, None]], axis=1).astype(np.float32)
+            return xp.asarray(seen, dtype=xp.float32)
+        return xp.concatenate([seen, xp.asarray(age)[:, None]], axis=1).astype(xp.float32)
 
     def space(self, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The observation space's bounds: the env's ``(low, high)`` (one per column), a noisy column's

@@ -11,8 +11,9 @@ other episodes than the same seed of ``gym.make``; the two are equal in distribu
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import jax
@@ -21,8 +22,11 @@ import numpy as np
 
 from heartpole import model
 from heartpole.dynamics import Dynamics
+from heartpole.jax.population import Population
 from heartpole.jax.spaces import Box, Discrete
-from heartpole.model import ActionEffects, StepTables, TableFields, table_fields
+from heartpole.measurement import Measurement, Sensor
+from heartpole.model import TIME_ELAPSED, ActionEffects, StepTables, TableFields, table_fields
+from heartpole.people import People, Sample
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
 """[`heartpole.model`][heartpole.model]'s functions with their own code objects, run on ``jax.numpy``."""
@@ -31,10 +35,18 @@ MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.repla
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class EnvState:
-    """One episode's state: the state variables (float32, observation order) and the decisions taken."""
+    """One episode's state: the state variables (float32, observation order), the decisions taken and the
+    episode's person (an env with ``people``): the cohort index (int32; -1 for a distribution or no people)
+    and the person's values (float32, one per column of ``people.columns``; none without people)."""
 
     variables: jax.Array
     time: jax.Array
+    person: jax.Array = field(default_factory=lambda: jnp.int32(-1))
+    person_values: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
+    seen: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
+    """With ``measurement``: the variables as last measured (float32, observation order); else empty."""
+    age: jax.Array = field(default_factory=lambda: jnp.float32(0))
+    """With ``measurement``: the half-hours since ``seen`` was measured."""
 
 
 @jax.tree_util.register_dataclass
@@ -109,14 +121,53 @@ class HeartPoleJax:
     ``discount`` (always 1.0) and, as the NumPy envs' info, ``heart_attack``, ``heart_attack_risk``,
     ``productivity`` and ``score``. gymnax's wrappers (``LogWrapper`` ...) accept the env.
 
+    **People.** With ``people``, every episode (at `reset` and at the autoreset inside `step`) draws its
+    person from the reset key, and the state carries them (``state.person``, ``state.person_values``):
+    `step_env` runs on `person_params`, the given params with the person's entries. ``vmap`` over envs
+    gives each env its own people; ``info["person"]`` (cohort index, -1 for a distribution) and
+    ``info["traits"]`` name the person of the step just taken (at an autoreset the ended episode's, as
+    ``info["final_observation"]``; the new episode's is in the returned ``state``). The gymnax way, one
+    fixed person per env, is `params_for`: a batch of ``EnvParams`` to ``vmap`` over.
+
     Everything is float32 (actions int32).
 
     Args:
         dynamics: the variant (``env.unwrapped.dynamics`` of any HeartPole env); default: HeartPole-v0's.
+        people: a population ([`People`][heartpole.people.People] or a name such as ``"default"``), or
+            ``None``: everyone has ``dynamics``' params. Fields it does not set are ``dynamics``'.
+        observe_traits: append the person's traits ([`People.traits`][heartpole.people.People.traits]) to
+            the observation (the observation space's bounds extended with
+            [`People.trait_bounds`][heartpole.people.People.trait_bounds]).
+        measurement: noisy, sparse measurements ([`Measurement`][heartpole.measurement.Measurement]): the
+            observation shows the variables as measured (then the measurement's age if it is taken less
+            often than every half-hour), the state keeps the truth (``state.variables``) and the last
+            reading (``state.seen``, ``state.age``). Its noise comes from a key folded off the step's key.
+
+    Raises:
+        ValueError: an unknown population name, ``observe_traits`` not a bool, or ``observe_traits=True``
+            without people.
+        TypeError: ``people`` or ``measurement`` of another type.
     """
 
-    def __init__(self, dynamics: Dynamics | None = None) -> None:
+    def __init__(
+        self,
+        dynamics: Dynamics | None = None,
+        people: People | str | None = None,
+        observe_traits: bool = False,
+        measurement: Measurement | None = None,
+    ) -> None:
         self.dynamics = Dynamics() if dynamics is None else dynamics
+        self.people = People.resolve(people)
+        if not isinstance(observe_traits, bool):
+            raise ValueError(f"observe_traits must be True or False, got {observe_traits!r}")
+        if observe_traits and self.people is None:
+            raise ValueError("observe_traits=True needs people (a population whose traits to observe), got None")
+        self.observe_traits = observe_traits
+        self.population = None if self.people is None else Population(self.people, self.dynamics)
+        if measurement is not None and not isinstance(measurement, Measurement):
+            raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
+        self.measurement = measurement
+        self.sensor = None if measurement is None else measurement.sensor(self.dynamics.names)
         self.num_variables = len(self.dynamics.variables)
         self._num_actions = len(self.dynamics.actions)
         # static: the Shape fields fix the step's loops (how many drowsy half-hours to unroll)
@@ -126,10 +177,13 @@ class HeartPoleJax:
     @classmethod
     def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
         """The JAX env of a registered HeartPole id (v0, v1, or a `heartpole.register_variant` one),
-        made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...)."""
+        made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...),
+        ``people``, ``observe_traits`` and ``measurement`` among them."""
         from heartpole.policies import env_dynamics
 
-        return cls(env_dynamics(env_id, env_kwargs))
+        ours = ("people", "observe_traits", "measurement")
+        mine = {name: env_kwargs.pop(name) for name in ours if name in env_kwargs}
+        return cls(env_dynamics(env_id, env_kwargs), **mine)
 
     # -- gymnax's Environment API ----------------------------------------------------------------------
     @property
@@ -168,11 +222,21 @@ class HeartPoleJax:
         return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
-        """[`initial_state`][heartpole.model.initial_state] with one uniform draw from ``key``."""
+        """[`initial_state`][heartpole.model.initial_state] with one uniform draw from ``key``; with people,
+        the episode's person is drawn first (from a key split off ``key``) and wakes up by their own params."""
+        person, values = jnp.int32(-1), jnp.zeros(0, jnp.float32)
+        if self.population is not None:
+            key, person_key = jax.random.split(key)
+            person, values = self.population.draw(person_key)
+        state = EnvState(variables=jnp.zeros(self.num_variables, jnp.float32), time=jnp.int32(0), person=person,
+                         person_values=values)  # fmt: skip
         zeros = (jnp.float32(0.0),) * self.num_variables
         uniform = jax.random.uniform(key, (), jnp.float32)
-        variables = jnp.stack(MODEL.initial_state(zeros, uniform, self._tables(params)))
-        state = EnvState(variables=variables, time=jnp.int32(0))
+        tables = self._tables(self.person_params(state, params))
+        state = dataclasses.replace(state, variables=jnp.stack(MODEL.initial_state(zeros, uniform, tables)))
+        if self.sensor is not None:
+            state = dataclasses.replace(state, seen=state.variables)
+            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, jnp.float32(jnp.inf))
         return self.get_obs(state), state
 
     def step_env(
@@ -183,10 +247,14 @@ class HeartPoleJax:
         n = self.num_variables
         u = jax.random.uniform(key, (n + 2,), jnp.float32)
         s = tuple(state.variables[v] for v in range(n))
+        mine = self.person_params(state, params)
         new, reward, worked, risk, attack, score = MODEL.step(
-            s, self._effects(params, action), tuple(u[i] for i in range(n + 2)), self._tables(params)
+            s, self._effects(mine, action), tuple(u[i] for i in range(n + 2)), self._tables(mine)
         )
-        state = EnvState(variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
+        state = dataclasses.replace(state, variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
+        if self.sensor is not None:
+            passed = state.variables[TIME_ELAPSED] - s[TIME_ELAPSED]
+            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, passed)
         info = {
             "discount": self.discount(state, params),
             "heart_attack": attack,
@@ -194,11 +262,28 @@ class HeartPoleJax:
             "productivity": jnp.float32(worked),
             "score": jnp.float32(score),
         }
+        if self.population is not None:
+            info |= {"person": state.person, "traits": state.person_values[self.population.trait_index]}
         return self.get_obs(state), state, jnp.float32(reward), self.is_terminated(state, params), info
 
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
-        """The observation: the state variables in observation order (float32)."""
-        return state.variables
+        """The observation: the state variables in observation order (float32), then the person's traits
+        with ``observe_traits``; with ``measurement``, the variables as measured, then their age if measured
+        less often than every half-hour, then the traits."""
+        obs = state.variables
+        if self.sensor is not None:
+            obs = self.sensor.observation(state.seen[None], state.age[None], jnp)[0]
+        if self.observe_traits and self.population is not None:
+            return jnp.concatenate([obs, state.person_values[self.population.trait_index]])
+        return obs
+
+    @staticmethod
+    def _measure(sensor: Sensor, key: jax.Array, state: EnvState, passed: jax.Array) -> EnvState:
+        """``state`` with a new measurement where one is due ([`Sensor.read`][heartpole.measurement.Sensor.read],
+        one standard normal per measured variable from ``key``)."""
+        noise = jax.random.normal(key, (1, len(sensor.columns)), jnp.float32)
+        seen, age = sensor.read(state.variables[None], state.seen[None], state.age[None], passed[None], noise, jnp)
+        return dataclasses.replace(state, seen=seen[0], age=age[0])
 
     def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
         """gymnax 1.0's observation hook: `get_obs`."""
@@ -229,12 +314,61 @@ class HeartPoleJax:
         from heartpole.env import observation_space
 
         box = observation_space(self.dynamics)
-        return Box(box.low, box.high, box.shape, jnp.float32)
+        low, high = box.low, box.high
+        if self.sensor is not None:
+            low, high = self.sensor.space(low, high)
+        if self.observe_traits and self.people is not None:
+            trait_low, trait_high = self.people.trait_bounds()
+            low, high = np.concatenate([low, trait_low]), np.concatenate([high, trait_high])
+        return Box(low, high, low.shape, jnp.float32)
 
     def state_space(self, params: EnvParams | None = None) -> dict[str, Any]:
         """The spaces of `EnvState`'s fields."""
         params = self.default_params if params is None else params
-        return {"variables": self.observation_space(params), "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32)}
+        from heartpole.env import observation_space
+
+        variables = observation_space(self.dynamics)
+        columns = 0 if self.population is None else len(self.population.columns)
+        return {
+            "variables": Box(variables.low, variables.high, variables.shape, jnp.float32),
+            "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32),
+            "person": Box(-1, max(len(self.people.cohort) - 1, -1) if self.people else -1, (), jnp.int32),
+            "person_values": Box(-np.inf, np.inf, (columns,), jnp.float32),
+            "seen": Box(-np.inf, np.inf, (0 if self.sensor is None else self.num_variables,), jnp.float32),
+            "age": Box(0, np.inf, (), jnp.float32),
+        }
+
+    # -- people ----------------------------------------------------------------------------------------
+    def person_params(self, state: EnvState, params: EnvParams) -> EnvParams:
+        """The params ``state``'s episode runs on: ``params`` with the entries the person's values set (the
+        rest, the task's ``heart_attack_penalty`` and ``max_steps_in_episode`` among them, as given); without
+        people, ``params`` itself."""
+        if self.population is None:
+            return params
+        tables = self.population.person_tables(state.person, state.person_values)
+        effects, step = Population.merge(params.effects, params.tables, tables, 1)
+        first: Callable[[Any], Any] = lambda x: x[0]  # noqa: E731
+        return EnvParams(
+            jax.tree_util.tree_map(first, effects), jax.tree_util.tree_map(first, step), params.max_steps_in_episode
+        )
+
+    def params_for(self, sample: Sample, params: EnvParams | None = None) -> EnvParams:
+        """A batch of ``EnvParams``, one per person of ``sample`` (a [`Sample`][heartpole.people.Sample] of
+        any population), to ``vmap`` over as gymnax does: ``jax.vmap(env.step, in_axes=(0, 0, 0, 0))``.
+
+        Each is ``params`` (default: the env's) with that person's entries; every leaf gains a leading axis of
+        ``len(sample)``. A cohort member's equal, bit for bit, the params of an env made with their values.
+
+        Raises:
+            TypeError: ``sample`` is not a [`Sample`][heartpole.people.Sample].
+        """
+        if not isinstance(sample, Sample):
+            raise TypeError(f"params_for() takes a heartpole.people.Sample (People.sample(rng, n)), got {sample!r}")
+        params = self.default_params if params is None else params
+        n = len(sample)
+        tables = Population(sample.people, self.dynamics).tables(np.asarray(sample.values, dtype=np.float64))
+        effects, step = Population.merge(params.effects, params.tables, tables, n)
+        return EnvParams(effects, step, jnp.broadcast_to(params.max_steps_in_episode, (n,)))
 
     # -- the step's inputs as [`heartpole.model`][heartpole.model] takes them ------------------------------------------
     def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
@@ -253,6 +387,7 @@ class HeartPoleJax:
 
 
 def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:
-    """``(env, env_params)`` for a HeartPole id, like ``gymnax.make``; ``env_kwargs`` as for ``gymnasium.make``."""
+    """``(env, env_params)`` for a HeartPole id, like ``gymnax.make``; ``env_kwargs`` as for ``gymnasium.make``,
+    with ``people``, ``observe_traits`` and ``measurement`` (see [`HeartPoleJax`][heartpole.jax.env.HeartPoleJax])."""
     env = HeartPoleJax.from_id(env_id, **env_kwargs)
     return env, env.default_params

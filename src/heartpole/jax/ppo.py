@@ -269,7 +269,7 @@ def make_parts(
 ) -> tuple[Callable[[jax.Array], Runner], Callable[[Runner], tuple[Runner, Any]]]:
     """``start(key) -> runner`` and ``run(runner) -> (runner, metrics)`` doing ``updates`` updates: a run
     in pieces, so that the host can show progress between them (see :func:`make_train`)."""
-    n_envs, obs_dim = s.n_envs, env.num_variables
+    n_envs, obs_dim = s.n_envs, env.observation_space(params).shape[0]  # the traits too with observe_traits
     penalty = params.heart_attack_penalty
     floor = np.float32(risk_floor(float(params.heart_attack_proclivity)))
     minibatches = s.rollout // s.batch_size
