@@ -235,7 +235,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         """The population each episode's person is drawn from (``None``: everyone has the env's parameters)."""
         self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
         self._sample: Sample | None = None  # the person of the episode
-        self._cells = np.zeros((1, 0), dtype=np.float32)  # the kernel's numbers of that person
+        # the kernel's numbers of the people and the row of this episode's person in them
+        self._people, self._person = (None, None) if self._persons is None else self._persons.arrays(1)
         self._seen: Seen | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)
@@ -295,8 +296,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         else:
             assert self.people is not None and people_rng is not None
             self._sample = self.people.sample(people_rng, 1)
-            self._cells = self._persons.cells(self._sample)
-            self._persons.kernels.reset_envs(envs, rng, which, self._persons.flat, self.dynamics.layout, self._cells)
+            self._persons.assign(self._people, self._person, which, self._sample)  # type: ignore[arg-type]
+            flat, layout = self._persons.flat, self.dynamics.layout
+            self._persons.kernels.reset_envs(envs, rng, which, flat, layout, self._people, self._person)
         self._envs, self._rng = envs, rng
         if self._observer.sensor is not None:
             self._seen = Seen(self._observer.sensor, 1)
@@ -319,7 +321,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             step = kernel.step_one(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
         else:
             flat, layout = self._persons.flat, self.dynamics.layout
-            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._cells)
+            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._people, self._person)
         reward, worked, risk, attack, new_score = step
         if self._seen is not None:
             self._seen.step(envs.T, None)
