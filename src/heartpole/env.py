@@ -236,7 +236,10 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
         self._sample: Sample | None = None  # the person of the episode
         # the kernel's numbers of the people and the row of this episode's person in them
-        self._people, self._person = (None, None) if self._persons is None else self._persons.arrays(1)
+        self._people: np.ndarray | None = None
+        self._person: np.ndarray | None = None
+        if self._persons is not None:
+            self._people, self._person = self._persons.arrays(1)
         self._seen: Seen | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)

@@ -204,7 +204,9 @@ class Kernels:
         own = _overlay(positions, columns, (num_variables, kernel.row_width(num_variables), num_actions))
 
         @njit(**COMPILED, **INLINE)
-        def loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any) -> None:
+        def loop(
+            envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any
+        ) -> None:
             kernel.wide_vectors()
             zeros, shape = _shape(layout)
             width = U64(_row_width(len(zeros)))

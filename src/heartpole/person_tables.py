@@ -45,7 +45,8 @@ class PersonTables:
         self.flat = np.ascontiguousarray(self._base.ravel())
         columns = np.arange(len(self.positions))
         if people.cohort:  # numbers equal for every member share a column (hypertension and alcohol fade alike)
-            _, first, columns = np.unique(self._cohort[:, self.positions], axis=1, return_index=True, return_inverse=True)
+            values = self._cohort[:, self.positions]
+            _, first, columns = np.unique(values, axis=1, return_index=True, return_inverse=True)
             self._unique = self.positions[first]
             columns = np.argsort(np.argsort(first))[columns.ravel()]
         else:

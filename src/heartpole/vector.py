@@ -141,7 +141,10 @@ class HeartPoleVectorEnv(VectorEnv):
         # Each env's person: cohort index, traits and the kernel's numbers; the generators of people and noise.
         self._person = np.full(self.num_envs, -1, dtype=np.int64)
         self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
-        self._people, self._person_row = (None, None) if self._persons is None else self._persons.arrays(num_envs)
+        self._people: np.ndarray | None = None
+        self._person_row: np.ndarray | None = None
+        if self._persons is not None:
+            self._people, self._person_row = self._persons.arrays(self.num_envs)
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
 
