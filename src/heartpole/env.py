@@ -181,6 +181,28 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     lines, the state) of up to the last 1000 steps; ``"human"`` prints it every step; ``"rgb_array"`` draws
     the current state as an image for videos.
 
+    ## People and measurements
+    ``people=`` draws a person for each episode (at ``reset``; the vector env also at every autoreset) from a
+    population, [`People`][heartpole.people.People] or ``"default"`` (24 people the optimum solves), with the
+    env's seeded generator: their ``heart_attack_proclivity``, ``decay_rate``, ``sleep_half_hours`` and
+    ``wake_alertness`` replace the env's. ``info["person"]`` is their cohort index (-1 for a distribution),
+    ``info["traits"]`` their traits (float32, ``env.people.traits`` order); the traits are hidden unless
+    ``observe_traits=True`` appends them to the observation and its space. ``measurement=``
+    ([`Measurement`][heartpole.measurement.Measurement]) adds Gaussian noise to the variables it names and
+    measures them every ``every`` half-hours, the last reading carried forward and its age one more column
+    (before the traits); the state itself is unchanged. Both are off by default: the env is then v0 exactly.
+
+    >>> import gymnasium as gym
+    >>> from heartpole.measurement import Measurement
+    >>> env = gym.make("HeartPole-v0", people="default", observe_traits=True)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape, info["person"], env.unwrapped.people.traits[:2]
+    ((11,), 19, ('heart_attack_proclivity', 'decay_rate'))
+    >>> bool((obs[6:] == info["traits"]).all())
+    True
+    >>> HeartPole(measurement=Measurement({"alertness": 0.2}, every=4)).observation_space.shape  # and the age
+    (7,)
+
     ## Arguments
     ``gymnasium.make("HeartPole-v0", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)``.
     ``heart_attack_proclivity`` in [0, 1] scales the risk; ``max_steps`` >= 1. Variants (see

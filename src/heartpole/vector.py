@@ -80,6 +80,14 @@ class HeartPoleVectorEnv(VectorEnv):
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
 
+    ``people``, ``observe_traits`` and ``measurement`` are the single env's (see its "People and
+    measurements"): each env draws its own person at ``reset`` and at every autoreset (all drawn at once from
+    one generator spawned from ``self.np_random`` at each ``reset``), ``info["person"]`` ``(num_envs,)`` int64
+    and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 hold the current episodes' people (with
+    ``SAME_STEP``, ``final_info`` holds the ended ones'), and ``self.people`` the population. The step stays one
+    compiled loop ([`heartpole.person_kernel`][heartpole.person_kernel]). With people, env 0 is still the single
+    env bit for bit; with a measurement, its noise differs after ``reset`` (drawn for all envs at once).
+
     Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
     ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
     ``env.spec.max_episode_steps`` reports the length the env truncates at.
