@@ -60,7 +60,12 @@ def test_single_env_is_vector_env_zero_bit_for_bit(people: People | str, observe
             assert one_info["heart_attack_risk"] == many_info["heart_attack_risk"][0]
 
 
-COHORT_OF_ONE = {"heart_attack_proclivity": 0.8, "decay_rate": 0.9, "sleep_half_hours": 12, "wake_alertness": (0.5, 1.5)}
+COHORT_OF_ONE = {
+    "heart_attack_proclivity": 0.8,
+    "decay_rate": 0.9,
+    "sleep_half_hours": 12,
+    "wake_alertness": (0.5, 1.5),
+}
 
 
 @pytest.mark.parametrize("make", [HeartPole, lambda **kw: HeartPoleVectorEnv(3, **kw)], ids=["single", "vector"])
@@ -74,10 +79,8 @@ def test_a_person_is_their_own_env_bit_for_bit(make) -> None:
         assert np.array_equal(a, b)
         actions = np.random.default_rng(1).integers(0, 4, size=(450, 3))
         for action in actions:
-            step = action[0] if isinstance(env, HeartPole) else action
-            x, y = env.step(int(step) if isinstance(env, HeartPole) else step), own.step(
-                int(step) if isinstance(env, HeartPole) else step
-            )
+            step = int(action[0]) if isinstance(env, HeartPole) else action
+            x, y = env.step(step), own.step(step)
             assert np.array_equal(x[0], y[0]) and np.array_equal(x[1], y[1])
 
 
