@@ -4,6 +4,10 @@ person's dynamics as their own env's, observations and spaces, autoreset and bad
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -213,3 +217,32 @@ def test_measurement_every_k_carries_forward_with_its_age() -> None:
 def test_bad_arguments(make, kwargs: dict, error: type, match: str) -> None:
     with pytest.raises(error, match=match):
         make(**kwargs)
+
+
+NO_JIT = """
+import numpy as np, heartpole
+from heartpole.people import People, Uniform
+for people in ("default", People(sleep_half_hours=Uniform(12, 20), wake_alertness=Uniform((0.6, 1.2), (0.8, 1.4)))):
+    env = heartpole.HeartPole(max_steps=30, people=people, observe_traits=True)
+    obs, _ = env.reset(seed=5)
+    for t in range(30):
+        obs, reward, terminated, truncated, info = env.step(t % 4)
+    print(obs.tobytes().hex(), info["person"])
+vec = heartpole.HeartPoleVectorEnv(3, max_steps=10, people="default")
+many, _ = vec.reset(seed=5)
+for t in range(30):
+    many, rewards, *_ = vec.step(np.array([t % 4, 3, 1]))
+print(many.tobytes().hex(), rewards.tobytes().hex())
+"""
+
+
+def test_people_run_the_same_without_numba_compiling() -> None:
+    """With NUMBA_DISABLE_JIT=1 the people's loops run as plain Python to the same observations, bit for bit."""
+
+    def run(extra: dict[str, str]) -> str:
+        environment = {**os.environ, **extra}
+        return subprocess.run(
+            [sys.executable, "-c", NO_JIT], capture_output=True, text=True, check=True, env=environment
+        ).stdout
+
+    assert run({"NUMBA_DISABLE_JIT": "1"}) == run({}) != ""
