@@ -183,12 +183,12 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
     ## People and measurements
     ``people=`` draws a person for each episode (at ``reset``; the vector env also at every autoreset) from a
-    population, [`People`][heartpole.people.People] or ``"default"`` (24 people the optimum solves), with the
+    population, `heartpole.people.People` or ``"default"`` (24 people the optimum solves), with the
     env's seeded generator: their ``heart_attack_proclivity``, ``decay_rate``, ``sleep_half_hours`` and
     ``wake_alertness`` replace the env's. ``info["person"]`` is their cohort index (-1 for a distribution),
     ``info["traits"]`` their traits (float32, ``env.people.traits`` order); the traits are hidden unless
     ``observe_traits=True`` appends them to the observation and its space. ``measurement=``
-    ([`Measurement`][heartpole.measurement.Measurement]) adds Gaussian noise to the variables it names and
+    (`heartpole.measurement.Measurement`) adds Gaussian noise to the variables it names and
     measures them every ``every`` half-hours, the last reading carried forward and its age one more column
     (before the traits); the state itself is unchanged. Both are off by default: the env is then v0 exactly.
 

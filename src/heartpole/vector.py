@@ -85,7 +85,7 @@ class HeartPoleVectorEnv(VectorEnv):
     one generator spawned from ``self.np_random`` at each ``reset``), ``info["person"]`` ``(num_envs,)`` int64
     and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 hold the current episodes' people (with
     ``SAME_STEP``, ``final_info`` holds the ended ones'), and ``self.people`` the population. The step stays one
-    compiled loop ([`heartpole.person_kernel`][heartpole.person_kernel]). With people, env 0 is still the single
+    compiled loop (`heartpole.person_kernel`). With people, env 0 is still the single
     env bit for bit; with a measurement, its noise differs after ``reset`` (drawn for all envs at once).
 
     Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
