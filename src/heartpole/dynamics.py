@@ -119,7 +119,7 @@ def _check_float32(effects: Sequence[ActionEffects], tables: StepTables) -> None
 
 def _fade(variable: Variable, params: Params) -> float:
     factor = variable.decay_factor(params)
-    # not float(factor): heartpole.jax runs step_tables on arrays of people's decay rates
+    # not float(factor): heartpole.jax and heartpole.person_tables run step_tables on arrays of people's decay rates
     return 1.0 if factor is None else factor
 
 
