@@ -187,12 +187,13 @@ def solve_people(
     caches (memory and disk: later calls only load).
 
     The first distinct person is looked up here; if that took a solve (longer than
-    [`SOLVED_HERE_SECONDS`][heartpole.optimum.people.SOLVED_HERE_SECONDS]), the others are solved
+    ``SOLVED_HERE_SECONDS``), the others are solved
     ``processes`` at a time in worker processes (spawned: safe beside numba's threads), else here.
 
     Args:
         people: a finite cohort, or a population's name (``"default"``).
-        env_id, env_kwargs: the env whose parameters each person changes (a person's fields win;
+        env_id: the env whose parameters each person changes.
+        env_kwargs: its keyword arguments (a person's fields win;
             [`POPULATION_KWARGS`][heartpole.optimum.people.POPULATION_KWARGS] are left out).
         processes: worker processes (default: 2, or 1 on a one-core machine).
         progress: called as ``progress(done, total)`` after each distinct person.
