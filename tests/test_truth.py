@@ -175,3 +175,13 @@ def test_the_default_population_oracle_and_expert() -> None:
     expert = evaluate("expert", episodes=EPISODES, seed=0, env_kwargs={"people": "default"})
     assert expert.oracle_regret_ci95[0] > 0
     assert set(np.unique(expert.person)) == set(range(24))
+
+
+def test_cli_optimum_solves_each_person(capsys, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    code, out, _ = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--check", "0")
+    assert code == 0 and "people trio: each person's optimum" in out
+    assert all(name in out for name in ("Ada", "Bo", "Fay")) and "-123.30429" in out  # Ada is v0
+    code, out, _ = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--check", "0", "--json")
+    assert code == 0 and [p["name"] for p in json.loads(out)["people"]] == ["Ada", "Bo", "Fay"]
+    code, _, err = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--grid", "800")
+    assert code == 2 and "--grid and --out solve one person" in err
