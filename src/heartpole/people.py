@@ -113,8 +113,8 @@ class Uniform:
 
 def _end(end: object) -> Value:
     """A range's end: a finite number or a pair of them (a tuple), else ``ValueError``."""
-    if is_number(end) and math.isfinite(end):
-        return end
+    if is_number(end) and math.isfinite(cast(float, end)):
+        return cast(float, end)
     if isinstance(end, (tuple, list)) and len(end) == 2 and all(is_number(x) and math.isfinite(x) for x in end):
         return cast(tuple[float, float], tuple(end))
     raise ValueError(f"Uniform's ends must be finite numbers or (low, high) pairs of them, got {end!r}")
