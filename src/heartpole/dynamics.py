@@ -119,6 +119,8 @@ def _check_float32(effects: Sequence[ActionEffects], tables: StepTables) -> None
 
 def _fade(variable: Variable, params: Params) -> float:
     factor = variable.decay_factor(params)
+    if isinstance(factor, np.ndarray):  # many people's at once (heartpole.person_tables)
+        return factor
     return 1.0 if factor is None else float(factor)
 
 

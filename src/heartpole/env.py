@@ -16,10 +16,15 @@ from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
+from heartpole.measurement import Measurement
 from heartpole.model import Params, Variable, check_keywords, score
+from heartpole.observation import Observer, Seen, observe
+from heartpole.people import People, Sample
+from heartpole.person_tables import PersonTables
 
 CONSTRUCTOR_KEYWORDS = (
-    "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps"
+    "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps", "people",
+    "observe_traits", "measurement",
 )  # fmt: skip
 """The env constructors' own keywords; every other keyword is a :class:`heartpole.Params` field."""
 
@@ -217,16 +222,26 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         actions: Sequence[Action] | None = None,
         variables: Sequence[Variable] | None = None,
         max_episode_steps: int | None = None,
+        people: People | str | None = None,
+        observe_traits: bool = False,
+        measurement: Measurement | None = None,
         **model_params: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         max_steps = episode_length(max_steps, max_episode_steps)
         self.dynamics = build_dynamics(heart_attack_proclivity, max_steps, actions, variables, model_params)
+        self._observer = Observer(self.dynamics, people, observe_traits, measurement)
+        self.people: People | None = self._observer.people
+        """The population each episode's person is drawn from (``None``: everyone has the env's parameters)."""
+        self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
+        self._sample: Sample | None = None  # the person of the episode
+        self._cells = np.zeros((1, 0), dtype=np.float32)  # the kernel's numbers of that person
+        self._seen: Seen | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)
         self.max_steps = int(max_steps)
         self.action_space = spaces.Discrete(len(self.dynamics.actions))
-        self.observation_space = observation_space(self.dynamics)
+        self.observation_space = self._observer.space(observation_space(self.dynamics))
         # One env of the kernel's loop over envs: its state (num_variables, 1) and its generator state (the
         # key's two halves and the draw counter).
         self._envs: np.ndarray | None = None
@@ -271,16 +286,28 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         :class:`heartpole.HeartPoleVectorEnv` reset with the same seed: the two then agree bit for bit.
         """
         super().reset(seed=seed)
+        people_rng, sensor_rng = self._observer.generators(self.np_random)
         envs = np.zeros((len(self.dynamics.variables), 1), dtype=np.float32)
         rng = kernel.generator_states(self.np_random, 1)
-        kernel.reset_envs(envs, rng, np.ones(1, dtype=bool), self.dynamics.packed, self.dynamics.layout)
+        which = np.ones(1, dtype=bool)
+        if self._persons is None:
+            kernel.reset_envs(envs, rng, which, self.dynamics.packed, self.dynamics.layout)
+        else:
+            assert self.people is not None and people_rng is not None
+            self._sample = self.people.sample(people_rng, 1)
+            self._cells = self._persons.cells(self._sample)
+            self._persons.kernels.reset_envs(envs, rng, which, self._persons.flat, self.dynamics.layout, self._cells)
         self._envs, self._rng = envs, rng
+        if self._observer.sensor is not None:
+            self._seen = Seen(self._observer.sensor, 1)
+            self._seen.rng = sensor_rng  # type: ignore[assignment]
+            self._seen.reset(envs.T, which)
         self._steps = 0
         self._last_action, self._last_attack, self._heart_attacks = None, False, 0
         self._log.clear()
         if self.render_mode == "human":
             self.render()
-        return envs[:, 0].copy(), dict(RESET_INFO)
+        return self._observation(), self._with_person(dict(RESET_INFO))
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Take ``action`` (0..n-1), then work a half-hour; see the class docstring for the details."""
@@ -288,9 +315,14 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         envs = self._envs
         if envs is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
-        reward, worked, risk, attack, new_score = kernel.step_one(
-            envs, index, self._rng, self.dynamics.packed, self.dynamics.layout
-        )
+        if self._persons is None:
+            step = kernel.step_one(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
+        else:
+            flat, layout = self._persons.flat, self.dynamics.layout
+            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._cells)
+        reward, worked, risk, attack, new_score = step
+        if self._seen is not None:
+            self._seen.step(envs.T, None)
         self._steps += 1
         if self.render_mode is not None:
             self._remember(index, attack)
@@ -301,7 +333,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             "productivity": worked,
             "score": new_score,
         }
-        return envs[:, 0].copy(), reward, False, self._steps >= self.max_steps, info
+        if self.people is not None:
+            self._with_person(info)
+        return self._observation(), reward, False, self._steps >= self.max_steps, info
 
     def render(self) -> str | np.ndarray | None:
         """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""
@@ -328,6 +362,21 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         return text
 
     # ----------------------------------------------------------------------------------------------------
+    def _observation(self) -> np.ndarray:
+        """The observation: the state itself, or as measured, with the person's traits if observed."""
+        assert self._envs is not None
+        if self._observer.plain:
+            return self._envs[:, 0].copy()
+        assert self._sample is not None or not self._observer.observe_traits
+        traits = self._sample.traits() if self._observer.observe_traits and self._sample is not None else None
+        return observe(self._envs.T, self._seen, traits)[0]
+
+    def _with_person(self, info: dict[str, Any]) -> dict[str, Any]:
+        """``info`` with the episode's person (its cohort index, -1 for a distribution) and traits, if any."""
+        if self._sample is not None:
+            info["person"], info["traits"] = int(self._sample.person[0]), self._sample.traits()[0]
+        return info
+
     def _remember(self, index: int, attack: bool) -> None:
         """Keep what rendering shows of the last step: the action, the heart attack and the text log."""
         self._last_action, self._last_attack = index, attack

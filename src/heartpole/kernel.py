@@ -257,7 +257,7 @@ def _repeat(count: int) -> Any:
     return njit(**JIT, **INLINE)(lambda value: (value,) + rest(value))
 
 
-def _reader(table: type[tuple[Any, ...]], fields: model.TableFields, cell: Any) -> Any:
+def reader(table: type[tuple[Any, ...]], fields: model.TableFields, cell: Any) -> Any:
     """A compiled ``read(source, start, zeros, shape)``: the ``table`` whose row (`pack_row`) starts at
     ``start`` (unsigned), number ``j`` being ``cell(source, start + j)``, with ``shape`` as its Shape fields."""
     per_variable, numbers = len(fields.per_variable), len(fields.numbers)
@@ -297,11 +297,11 @@ def _chosen(source: Any, column: Any) -> Any:
     return value
 
 
-read_effects = _reader(model.ActionEffects, EFFECTS, _at)
+read_effects = reader(model.ActionEffects, EFFECTS, _at)
 """The [`ActionEffects`][heartpole.model.ActionEffects] in a row of `pack`'s array (or the action table)."""
-chosen_effects = _reader(model.ActionEffects, EFFECTS, _chosen)
+chosen_effects = reader(model.ActionEffects, EFFECTS, _chosen)
 """The [`ActionEffects`][heartpole.model.ActionEffects] of an env's action, selected with masks (`_chosen`)."""
-read_tables = _reader(model.StepTables, TABLES, _at)
+read_tables = reader(model.StepTables, TABLES, _at)
 """The [`StepTables`][heartpole.model.StepTables] in [`pack`][heartpole.kernel.pack]'s last row."""
 
 
@@ -338,7 +338,7 @@ def _stack_floats_intrinsic(typingctx: Any, actions: Any, zeros: Any) -> Any:
     return pointer(nbtypes.float32)(actions, zeros), codegen
 
 
-_stack_floats: Any = _stack_floats_intrinsic
+stack_floats: Any = _stack_floats_intrinsic
 
 
 @njit(**JIT, **INLINE)
@@ -351,7 +351,7 @@ def _action_table(packed: Any, layout: Any, zeros: Any) -> Any:
     """
     width = _row_width(len(zeros))  # known when compiling, as the branch below
     if len(layout[2]) * width <= STACK_TABLE_LIMIT:  # known when compiling: one branch stays
-        table = carray(_stack_floats(layout[2], zeros), len(layout[2]) * width)
+        table = carray(stack_floats(layout[2], zeros), len(layout[2]) * width)
     else:
         table = np.empty(len(layout[2]) * width, dtype=np.float32)
     for a in range(len(layout[2])):
@@ -382,9 +382,9 @@ def _wide_vectors_intrinsic(typingctx: Any) -> Any:
     return nbtypes.none(), codegen
 
 
-_wide_vectors: Any = _wide_vectors_intrinsic
+wide_vectors: Any = _wide_vectors_intrinsic
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _wide_vectors = lambda: None  # noqa: E731
+    wide_vectors = lambda: None  # noqa: E731
 
 
 SELECTED_ACTIONS = 4
@@ -401,7 +401,7 @@ with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
 @njit(**JIT, **INLINE)
 def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
-    _wide_vectors()
+    wide_vectors()
     zeros, tables = _unpack(packed, layout)
     table, width = _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
     selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
@@ -453,7 +453,7 @@ _on_the_stack: Any = _on_the_stack_intrinsic
 
 
 @njit(**JIT, **INLINE)
-def _one(value: Any) -> Any:
+def one(value: Any) -> Any:
     """A one-item array holding ``value``, on the caller's stack (no allocation)."""
     array = carray(_on_the_stack(value), 1)
     array[0] = value
@@ -461,7 +461,7 @@ def _one(value: Any) -> Any:
 
 
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
+    one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
 
 
 @njit(**JIT)
@@ -469,8 +469,8 @@ def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
     """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
     ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
     loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
-    results = (_one(F32(0.0)), _one(F32(0.0)), _one(F32(0.0)), _one(False), _one(F32(0.0)))
-    _step_envs(envs, results, _one(ACTION_DTYPE(action)), rng, packed, layout)
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
+    _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 

@@ -246,16 +246,22 @@ class People:
     def sample(self, rng: np.random.Generator, n: int) -> Sample:
         """Draw ``n`` people (one per env) from ``rng``, vectorized: the same generator state gives the same people.
 
-        A cohort draws ``rng.integers(0, len(cohort), n)``; a distribution draws each uniform column in
-        [`columns`][heartpole.people.People.columns]' order (``rng.uniform``, or ``rng.integers`` with both
-        ends for an integer field) and nothing for a fixed one.
+        A cohort draws ``rng.integers(0, len(cohort), n)``; a distribution draws ``rng.random((n, k))`` for
+        its ``k`` uniform columns (row by row: env ``i``'s people are the same whatever ``n``, so a single env
+        draws what env 0 of a vector env draws) and maps column ``j`` to ``low + (high - low) * u`` (an
+        integer field: ``low + floor((high - low + 1) * u)``, both ends included); a fixed one draws nothing.
         """
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
             raise ValueError(f"n must be an integer >= 0, got {n!r}")
         if self.cohort:
             person = rng.integers(0, len(self.cohort), size=int(n))
             return Sample(self, person, self._table[person])
-        columns = [self._draw(rng, field, spec, int(n)) for field, spec in self.fields]
+        uniforms = rng.random((int(n), len(self.traits)))
+        columns, used = [], 0
+        for field, spec in self.fields:
+            width = len(field_columns(field)) if isinstance(spec, Uniform) else 0
+            columns.append(self._draw(uniforms[:, used : used + width], field, spec, int(n)))
+            used += width
         values = np.concatenate(columns, axis=1) if columns else np.zeros((int(n), 0))
         return Sample(self, np.full(int(n), -1, dtype=np.int64), values)
 
@@ -283,13 +289,14 @@ class People:
         return np.array(_row(low), dtype=np.float64), np.array(_row(high), dtype=np.float64)
 
     @staticmethod
-    def _draw(rng: np.random.Generator, field: str, spec: Value | Uniform, n: int) -> np.ndarray:
+    def _draw(uniforms: np.ndarray, field: str, spec: Value | Uniform, n: int) -> np.ndarray:
+        """``field``'s columns for ``n`` people from ``uniforms`` in [0, 1), one column per column of it."""
         if not isinstance(spec, Uniform):
             return np.tile(np.array(_row({field: spec}), dtype=np.float64), (n, 1))
         low, high = (np.atleast_1d(np.asarray(end, dtype=np.float64)) for end in spec.ends())
         if _is_integer(field):
-            return rng.integers(low.astype(np.int64), high.astype(np.int64), size=(n, len(low)), endpoint=True)
-        return rng.uniform(low, high, size=(n, len(low)))
+            return np.minimum(low + np.floor((high - low + 1.0) * uniforms), high)  # u < 1, but rounding
+        return low + (high - low) * uniforms
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,11 @@ from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.env import RESET_INFO, build_dynamics, check_render_mode, episode_length, observation_space
+from heartpole.measurement import Measurement
 from heartpole.model import Variable, check_integer
+from heartpole.observation import Observer, Seen, observe
+from heartpole.people import People
+from heartpole.person_tables import PersonTables
 
 INFO_KEYS = tuple(RESET_INFO)
 """The keys of a step's and a reset's ``info`` (each with its ``_key`` mask): the single env's."""
@@ -95,6 +99,9 @@ class HeartPoleVectorEnv(VectorEnv):
         variables: Sequence[Variable] | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         max_episode_steps: int | None = None,
+        people: People | str | None = None,
+        observe_traits: bool = False,
+        measurement: Measurement | None = None,
         **model_params: Any,
     ) -> None:
         check_integer("num_envs", num_envs, 1)
@@ -106,6 +113,10 @@ class HeartPoleVectorEnv(VectorEnv):
         self.dynamics = build_dynamics(
             heart_attack_proclivity, max_steps, actions, variables, model_params, "HeartPoleVectorEnv.__init__"
         )
+        self._observer = Observer(self.dynamics, people, observe_traits, measurement)
+        self.people: People | None = self._observer.people
+        """The population each episode's person is drawn from (``None``: everyone has the env's parameters)."""
+        self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
         self.num_envs = int(num_envs)
         self.max_steps = int(max_steps)
         self.render_mode = render_mode
@@ -113,7 +124,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.single_action_space = spaces.Discrete(len(self.dynamics.actions))
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.single_observation_space = observation_space(self.dynamics)
+        self.single_observation_space = self._observer.space(observation_space(self.dynamics))
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._envs = np.zeros((len(self.dynamics.variables), self.num_envs), dtype=np.float32)  # the states
         self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
@@ -127,6 +138,13 @@ class HeartPoleVectorEnv(VectorEnv):
         self._last_actions = np.full(self.num_envs, -1)
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
+        # Each env's person: cohort index, traits and the kernel's numbers; the generators of people and noise.
+        self._person = np.full(self.num_envs, -1, dtype=np.int64)
+        self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
+        width = 0 if self._persons is None else len(self._persons.positions)
+        self._cells = np.zeros((self.num_envs, width), dtype=np.float32)
+        self._people_rng: np.random.Generator | None = None
+        self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
 
     @property
     def spec(self) -> EnvSpec | None:
@@ -170,18 +188,27 @@ class HeartPoleVectorEnv(VectorEnv):
         if not self._started and not mask.all():
             raise ResetNeeded("call reset() without a reset_mask first: the other envs have no episode yet")
         super().reset(seed=seed)
+        people_rng, sensor_rng = self._observer.generators(self.np_random)
         keys = kernel.generator_states(self.np_random, self.num_envs)
+        if people_rng is not None:  # the people a full reset draws; those of the envs reset now take theirs
+            self._people_rng = people_rng
+            self._new_people(mask, self.num_envs)
+        if self._seen is not None and sensor_rng is not None:
+            self._seen.rng = sensor_rng
         if mask.all():
             self._rng[:] = keys
             self._clock, self._ended, self._started = 0, None, True
         else:
             self._rng[:, mask] = keys[:, mask]
             self._ended = self._still_ended(~mask)
-        self._restart(mask)
+        self._restart(mask, draw=False)
+        if self._seen is not None:
+            self._seen.reset(self._envs.T, mask)
         info: dict[str, Any] = {}
         for key, value in RESET_INFO.items():
             info[key] = np.zeros(self.num_envs, dtype=INFO_DTYPES[key])
             info[key][mask], info["_" + key] = value, mask.copy()
+        self._person_info(info)
         return self._observations(), info
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -198,8 +225,11 @@ class HeartPoleVectorEnv(VectorEnv):
         n = self.num_envs
         results = kernel.new_results(n)  # fresh: they go out as they are
         stepped = restart is None or not restart.all()
-        if stepped:
+        if stepped and self._persons is None:
             kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
+        elif stepped:
+            flat, layout = self._persons.flat, self.dynamics.layout  # type: ignore[union-attr]
+            self._persons.kernels.step_envs(self._envs, results, action, self._rng, flat, layout, self._cells)  # type: ignore[union-attr]
         reward, worked, risk, attack, new_score = results
         present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
@@ -216,13 +246,19 @@ class HeartPoleVectorEnv(VectorEnv):
             self._last_actions[:], self._last_attacks[:] = action, attack
             self._heart_attacks += attack
         ended = None if self._clock < self._next_end else self._clock - self._starts >= self.max_steps
+        if self._seen is not None:
+            self._seen.step(self._envs.T, restart)
+        self._person_info(info)
         obs, self._ended = self._observations(), None
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
             info.update(_final_infos(info, obs, ended))
             self._restart(ended)
+            if self._seen is not None:
+                self._seen.reset(self._envs.T, ended)
             _write_reset_values(info, ended)
+            self._person_info(info)
             obs, truncated = self._observations(), ended
         else:  # they restart on the next step (NEXT_STEP) or when the caller resets them (DISABLED)
             self._ended, truncated = ended, ended.copy()
@@ -250,12 +286,39 @@ class HeartPoleVectorEnv(VectorEnv):
 
     # ----------------------------------------------------------------------------------------------------
     def _observations(self) -> np.ndarray:
-        """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s."""
-        return self._envs.copy().T
+        """A copy of the state as ``(num_envs, num_variables)``, column-major like ``CartPoleVectorEnv``'s (as
+        measured and with the traits, if so made: then row-major)."""
+        if self._observer.plain:
+            return self._envs.copy().T
+        return observe(self._envs.T, self._seen, self._traits if self._observer.observe_traits else None)
 
-    def _restart(self, which: np.ndarray) -> None:
-        """Start the envs where ``which`` afresh; their random numbers go on from their generator states."""
-        kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
+    def _new_people(self, which: np.ndarray, count: int) -> None:
+        """Draw ``count`` people (vectorized) and give them, in env order, to the envs ``which``
+        (a full reset draws one per env and keeps those of ``which``; an autoreset one per env restarted)."""
+        assert self.people is not None and self._persons is not None and self._people_rng is not None
+        drawn = self.people.sample(self._people_rng, count)
+        chosen = which if count == self.num_envs else slice(None)
+        self._person[which] = drawn.person[chosen]
+        self._traits[which] = drawn.traits()[chosen]
+        self._cells[which] = self._persons.cells(drawn)[chosen]
+
+    def _person_info(self, info: dict[str, Any]) -> None:
+        """Put each env's current person (cohort index, -1 for a distribution) and traits into ``info``."""
+        if self.people is not None:
+            present = np.ones(self.num_envs, dtype=bool)
+            info["person"], info["_person"] = self._person.copy(), present
+            info["traits"], info["_traits"] = self._traits.copy(), present
+
+    def _restart(self, which: np.ndarray, draw: bool = True) -> None:
+        """Start the envs where ``which`` afresh, with new people if ``draw`` (autoreset); their random numbers
+        go on from their generator states."""
+        if self._persons is None:
+            kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
+        else:
+            if draw:
+                self._new_people(which, int(which.sum()))
+            flat, layout = self._persons.flat, self.dynamics.layout
+            self._persons.kernels.reset_envs(self._envs, self._rng, which, flat, layout, self._cells)
         self._starts[which] = self._clock
         self._next_end = int(self._starts.min()) + self.max_steps
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
@@ -317,7 +380,8 @@ def _final_infos(info: dict[str, Any], obs: np.ndarray, ended: np.ndarray) -> di
     for i, row in zip(np.flatnonzero(ended), np.ascontiguousarray(obs[ended])):
         final_obs[i] = row
     final_info: dict[str, Any] = {}
-    for key in INFO_KEYS:
-        final_info[key] = np.where(ended, info[key], np.zeros((), dtype=info[key].dtype))
+    for key in [key for key in info if not key.startswith("_")]:  # INFO_KEYS, and the person's with people
+        where = ended.reshape((-1,) + (1,) * (info[key].ndim - 1))
+        final_info[key] = np.where(where, info[key], np.zeros((), dtype=info[key].dtype))
         final_info["_" + key] = ended.copy()
     return {"final_obs": final_obs, "_final_obs": ended.copy(), "final_info": final_info, "_final_info": ended.copy()}

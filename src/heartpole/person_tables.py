@@ -1,0 +1,94 @@
+"""Each env's person as the numbers [`heartpole.person_kernel`][heartpole.person_kernel] reads.
+
+[`PersonTables`][heartpole.person_tables.PersonTables] binds a population
+([`People`][heartpole.people.People]) to a variant ([`Dynamics`][heartpole.dynamics.Dynamics]): which numbers
+of the packed tables differ between people (the *slots*), and, for people drawn
+([`Sample`][heartpole.people.Sample]), each env's values of them. The numbers come from
+[`step_tables`][heartpole.dynamics.step_tables], the one place that turns [`Params`][heartpole.model.Params]
+into tables: a cohort's members one by one (so an env of the cohort's person is an env made with that person's
+``Params`` bit for bit), a distribution's people all at once (NumPy arrays in place of the parameters).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+
+import numpy as np
+
+from heartpole import kernel, person_kernel
+from heartpole.dynamics import Dynamics, step_tables
+from heartpole.model import Params
+from heartpole.people import People, Sample, field_columns
+
+
+class PersonTables:
+    """A population's numbers for a variant's kernel.
+
+    Attributes:
+        people: the population.
+        flat: the kernel's ``flat`` table: the variant's packed numbers, raveled.
+        positions: ``(k,)`` the numbers (indices into ``flat``) that differ between people.
+        kernels: the compiled loops for those positions ([`kernels`][heartpole.person_kernel.kernels]).
+    """
+
+    def __init__(self, dynamics: Dynamics, people: People) -> None:
+        self.people, self.dynamics = people, dynamics
+        self._base = dynamics.packed
+        if people.cohort:
+            members = [dataclasses.replace(dynamics.params, **p.values()) for p in people.cohort]  # type: ignore[arg-type]
+            self._cohort = np.stack([self._packed_one(params) for params in members]).reshape(len(members), -1)
+            probes = self._cohort
+        else:
+            probes = self._packed_many(self._probes())
+        self.positions = np.flatnonzero(np.any(probes != self._base.ravel(), axis=0))
+        self.flat = np.ascontiguousarray(self._base.ravel())
+        self.kernels = person_kernel.kernels(
+            tuple(self.positions.tolist()), len(dynamics.variables), len(dynamics.actions)
+        )
+
+    def cells(self, sample: Sample) -> np.ndarray:
+        """The kernel's ``cells`` for the people of ``sample``: ``(n, k)`` float32, env by env."""
+        if self.people.cohort:
+            values = self._cohort[sample.person][:, self.positions]
+        else:
+            full = self._packed_many({c: sample.column(c, self.dynamics.params) for c in self.people.columns})
+            shared = np.delete(full, self.positions, axis=1)
+            if not np.array_equal(shared, np.broadcast_to(np.delete(self._base.ravel(), self.positions), shared.shape)):
+                raise RuntimeError("a person changed a number no probe of the population changed")  # never, by design
+            values = full[:, self.positions]
+        return np.ascontiguousarray(values, dtype=np.float32)
+
+    # ----------------------------------------------------------------------------------------------------
+    def _packed_one(self, params: Params) -> np.ndarray:
+        """One person's packed tables, built as an env made with ``params`` builds them."""
+        return Dynamics(self.dynamics.actions, params, self.dynamics.variables).packed
+
+    def _probes(self) -> dict[str, np.ndarray]:
+        """Values of a distribution's columns that move every number a person can move: every column at its low
+        end, at its high end, and each alone at its high end (a width ``high - low`` moves with one end)."""
+        fixed = self.people.sample(np.random.default_rng(0), 1)  # its fixed columns; the traits are set below
+        low, high = self.people.trait_bounds()
+        traits = list(self.people.traits)
+        rows = [low, high] + [np.where(np.arange(len(traits)) == j, high, low) for j in range(len(traits))]
+        probes = {c: np.full(len(rows), fixed.values[0, k]) for k, c in enumerate(self.people.columns)}
+        for j, column in enumerate(traits):
+            probes[column] = np.array([row[j] for row in rows], dtype=np.float64)
+        return probes
+
+    def _packed_many(self, columns: dict[str, np.ndarray]) -> np.ndarray:
+        """``(n, size)`` float32: the packed tables of ``n`` people at once, their columns given as arrays."""
+        n = len(next(iter(columns.values())))
+        values: dict[str, object] = {}
+        for field in dataclasses.fields(Params):
+            found = [columns.get(c) for c in field_columns(field.name)]
+            if any(column is None for column in found):
+                values[field.name] = getattr(self.dynamics.params, field.name)
+            else:
+                values[field.name] = tuple(found) if len(found) == 2 else found[0]
+        params = types.SimpleNamespace(**values)  # Params' fields, arrays for the drawn ones
+        effects, tables = step_tables(self.dynamics.actions, self.dynamics.variables, params)  # type: ignore[arg-type]
+        width = kernel.row_width(len(self.dynamics.variables))
+        rows = [kernel.pack_row(e, kernel.EFFECTS) for e in effects] + [kernel.pack_row(tables, kernel.TABLES)]
+        cells = [np.broadcast_to(np.float32(x), (n,)) for row in rows for x in row + [0.0] * (width - len(row))]
+        return np.stack(cells, axis=1)
