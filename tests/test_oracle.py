@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from heartpole.optimum import PeopleOptimum, solve_people
-from heartpole.people import People, Person, Uniform
+from heartpole.people import People, Uniform
 from heartpole.policies import (
     BUILTIN_POLICIES,
     OptimalPolicy,
@@ -17,15 +17,7 @@ from heartpole.policies import (
     make_policy,
     oracle_policy,
 )
-
-# Ada is v0; Bo sleeps 6 hours and wakes duller; Fay sleeps 10 hours: three different sleep timings
-TRIO = People(
-    cohort=[
-        Person("Ada", sleep_half_hours=16, wake_alertness=(0.7, 1.3)),
-        Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2)),
-        Person("Fay", sleep_half_hours=20, wake_alertness=(0.7, 1.5)),
-    ]
-)
+from tests.people_cohorts import TRIO
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,10 @@
 """heartpole.truth and evaluation under people: each episode's person, the oracle regret, its JSON and CLI.
 
-Statistical tolerances: the oracle's oracle regret has a 95% interval that contains 0 (its 2,000 episodes give
-an interval about +-0.0003 wide, so a policy that ignored who it treats, about 0.03 worse here, would be far
-outside it: tests/test_oracle.py shows the people's rules differ); the expert's interval lies above 0.
+Statistical tolerances. The oracle: over 10 seeds of 2,000 episodes, at least 8 of its 95% intervals of the
+oracle regret contain 0 (each does with chance 0.95 if it is unbiased: 7 or fewer has chance 1.2%), and each is
+narrower than +-0.001, so an oracle that ignored who it treats (about 0.007 here, see tests/people_cohorts.py)
+would miss every one. The expert: its 95% interval lies above 0 (its oracle regret is about 0.001, 5 standard
+errors). The people drawn: each of the three within 5 standard deviations of a third of the episodes.
 """
 
 from __future__ import annotations
@@ -16,16 +18,10 @@ import pytest
 import heartpole.people
 from heartpole.evaluation import compare, evaluate
 from heartpole.optimum import PeopleOptimum, oracle_regret, solve_people
-from heartpole.people import People, Person, Uniform
+from heartpole.people import People, Uniform
 from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
+from tests.people_cohorts import TRIO
 
-TRIO = People(
-    cohort=[
-        Person("Ada", sleep_half_hours=16, wake_alertness=(0.7, 1.3)),
-        Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2)),
-        Person("Fay", sleep_half_hours=20, wake_alertness=(0.7, 1.5)),
-    ]
-)
 EPISODES = 2000
 
 
@@ -86,11 +82,12 @@ def test_the_experts_oracle_regret_is_above_zero_beyond_doubt(expert) -> None:  
     assert expert.oracle_regret_ci95[0] > 0
 
 
-def test_the_oracles_oracle_regret_is_zero_within_its_interval() -> None:
-    result = evaluate("oracle", episodes=EPISODES, seed=6, env_kwargs={"people": TRIO})
-    low, high = result.oracle_regret_ci95
-    assert low <= 0 <= high and high - low < 0.002, (result.oracle_regret, low, high)
-    assert result.drinks_per_episode == 0
+def test_the_oracles_oracle_regret_is_zero_within_its_intervals() -> None:
+    results = [evaluate("oracle", episodes=EPISODES, seed=seed, env_kwargs={"people": TRIO}) for seed in range(10)]
+    intervals = [result.oracle_regret_ci95 for result in results]
+    assert all(high - low < 0.002 for low, high in intervals), intervals
+    assert sum(low <= 0 <= high for low, high in intervals) >= 8, intervals
+    assert all(result.drinks_per_episode == 0 for result in results)
 
 
 def test_under_people_one_optimum_is_no_ones_and_json_has_the_oracle_keys(expert) -> None:  # type: ignore[no-untyped-def]
@@ -180,8 +177,8 @@ def test_the_default_population_oracle_and_expert() -> None:
 def test_cli_optimum_solves_each_person(capsys, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     code, out, _ = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--check", "0")
     assert code == 0 and "people trio: each person's optimum" in out
-    assert all(name in out for name in ("Ada", "Bo", "Fay")) and "-123.30429" in out  # Ada is v0
+    assert all(name in out for name in ("Ada", "Bo", "Max")) and "-123.30429" in out  # Ada is v0
     code, out, _ = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--check", "0", "--json")
-    assert code == 0 and [p["name"] for p in json.loads(out)["people"]] == ["Ada", "Bo", "Fay"]
+    assert code == 0 and [p["name"] for p in json.loads(out)["people"]] == ["Ada", "Bo", "Max"]
     code, _, err = _run(capsys, monkeypatch, "optimum", "--people", "trio", "--grid", "800")
     assert code == 2 and "--grid and --out solve one person" in err
