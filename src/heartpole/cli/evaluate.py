@@ -273,7 +273,7 @@ def format_result(result: EvaluationResult) -> str:
         rows.insert(1, ["regret (optimum - expected-risk return)", *_interval(result.regret, result.regret_ci95, 5)])
     if math.isfinite(result.oracle_regret):
         label = "oracle regret (person's optimum - expected-risk return)"
-        rows.insert(1, [label, *_interval(result.oracle_regret, result.oracle_regret_ci95, 4)])
+        rows.insert(1, [label, *_interval(result.oracle_regret, result.oracle_regret_ci95, 5)])
     header = (
         f"{result.policy} on {result.env_id}: {_episodes(result.episodes)} of {result.max_steps} steps, "
         f"seed {result.seed} ({result.seconds:.1f} s)"
