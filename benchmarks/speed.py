@@ -2,7 +2,7 @@
 
     python benchmarks/speed.py                  # every section, about ten minutes on a 2-core machine
     python benchmarks/speed.py --quick          # fewer repeats
-    python benchmarks/speed.py --only vector    # one section: single, vector, blas, anatomy, flat, compile
+    python benchmarks/speed.py --only vector    # one section: single, vector, people, blas, anatomy, flat, compile
     python benchmarks/speed.py --busy           # the same with a second CPU-bound process running
 
 Every figure is a ratio against its anchor measured in the same run: HeartPole and CartPole are measured
@@ -47,6 +47,7 @@ SINGLE_ENVS: dict[str, Factory] = {
 VECTOR_ENVS: dict[str, Callable[[int], Any]] = {
     "CartPoleVectorEnv": lambda n: CartPoleVectorEnv(num_envs=n),
     "HeartPoleVectorEnv": lambda n: heartpole.HeartPoleVectorEnv(n),
+    "HeartPoleVectorEnv:people=default": lambda n: heartpole.HeartPoleVectorEnv(n, people="default"),
     "HeartPole-v1": lambda n: gym.make_vec("HeartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"),
 }
 VECTOR_GOALS = {256: 2.0, 1024: 3.0, 16384: 5.0, 65536: 3.0}
@@ -143,6 +144,21 @@ def section_vector(repeats: int, sizes: list[int]) -> None:
         repeats, partial(fresh, "HeartPole-v1", n, steps), partial(fresh, "CartPoleVectorEnv", n, steps)
     )
     report(f"HeartPole-v1 vector env n={n}", ratios, f"CartPoleVectorEnv n={n}")
+
+
+PEOPLE_SIZE, PEOPLE_GOAL = 16384, 0.8
+"""Issue 26: with ``people="default"`` the vector env keeps at least 0.8x v0's own speed at 16,384 envs."""
+
+
+def section_people(repeats: int, n: int = PEOPLE_SIZE) -> None:
+    print(f"vector env with people, random actions: ratio of env-steps/s, median (range) of {repeats} pairs")
+    steps = max(30, min(3000, 6_000_000 // n))
+    ratios = paired_ratios(
+        repeats,
+        partial(fresh, "HeartPoleVectorEnv:people=default", n, steps),
+        partial(fresh, "HeartPoleVectorEnv", n, steps),
+    )
+    report(f"people='default' n={n}", ratios, f"HeartPoleVectorEnv n={n}", PEOPLE_GOAL)
 
 
 def section_blas(repeats: int, n: int = 16384) -> None:
@@ -297,7 +313,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, help="pairs per figure")
     parser.add_argument("--busy", action="store_true", help="run a second CPU-bound process meanwhile")
     parser.add_argument(
-        "--only", choices=["single", "vector", "blas", "anatomy", "flat", "compile"], help="one section"
+        "--only", choices=["single", "vector", "people", "blas", "anatomy", "flat", "compile"], help="one section"
     )
     parser.add_argument("--sizes", type=int, nargs="+", default=[256, 1024, 16384, 65536], help="vector sizes")
     parser.add_argument("--measure", nargs=3, metavar=("ENV", "NUM_ENVS", "STEPS"), help=argparse.SUPPRESS)
@@ -316,6 +332,7 @@ def main() -> None:
     sections = {
         "single": lambda: section_single(repeats),
         "vector": lambda: section_vector(repeats, args.sizes),
+        "people": lambda: section_people(repeats),
         "blas": lambda: section_blas(max(3, repeats // 2)),
         "anatomy": section_anatomy,
         "compile": section_compile,

@@ -181,6 +181,28 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     lines, the state) of up to the last 1000 steps; ``"human"`` prints it every step; ``"rgb_array"`` draws
     the current state as an image for videos.
 
+    ## People and measurements
+    ``people=`` draws a person for each episode (at ``reset``; the vector env also at every autoreset) from a
+    population, [`People`][heartpole.people.People] or ``"default"`` (24 people the optimum solves), with the
+    env's seeded generator: their ``heart_attack_proclivity``, ``decay_rate``, ``sleep_half_hours`` and
+    ``wake_alertness`` replace the env's. ``info["person"]`` is their cohort index (-1 for a distribution),
+    ``info["traits"]`` their traits (float32, ``env.people.traits`` order); the traits are hidden unless
+    ``observe_traits=True`` appends them to the observation and its space. ``measurement=``
+    ([`Measurement`][heartpole.measurement.Measurement]) adds Gaussian noise to the variables it names and
+    measures them every ``every`` half-hours, the last reading carried forward and its age one more column
+    (before the traits); the state itself is unchanged. Both are off by default: the env is then v0 exactly.
+
+    >>> import gymnasium as gym
+    >>> from heartpole.measurement import Measurement
+    >>> env = gym.make("HeartPole-v0", people="default", observe_traits=True)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape, info["person"], env.unwrapped.people.traits[:2]
+    ((11,), 19, ('heart_attack_proclivity', 'decay_rate'))
+    >>> bool((obs[6:] == info["traits"]).all())
+    True
+    >>> HeartPole(measurement=Measurement({"alertness": 0.2}, every=4)).observation_space.shape  # and the age
+    (7,)
+
     ## Arguments
     ``gymnasium.make("HeartPole-v0", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)``.
     ``heart_attack_proclivity`` in [0, 1] scales the risk; ``max_steps`` >= 1. Variants (see
@@ -235,7 +257,11 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         """The population each episode's person is drawn from (``None``: everyone has the env's parameters)."""
         self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
         self._sample: Sample | None = None  # the person of the episode
-        self._cells = np.zeros((1, 0), dtype=np.float32)  # the kernel's numbers of that person
+        # the kernel's numbers of the people and the row of this episode's person in them
+        self._people: np.ndarray | None = None
+        self._person: np.ndarray | None = None
+        if self._persons is not None:
+            self._people, self._person = self._persons.arrays(1)
         self._seen: Seen | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)
@@ -295,8 +321,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         else:
             assert self.people is not None and people_rng is not None
             self._sample = self.people.sample(people_rng, 1)
-            self._cells = self._persons.cells(self._sample)
-            self._persons.kernels.reset_envs(envs, rng, which, self._persons.flat, self.dynamics.layout, self._cells)
+            self._persons.assign(self._people, self._person, which, self._sample)  # type: ignore[arg-type]
+            flat, layout = self._persons.flat, self.dynamics.layout
+            self._persons.kernels.reset_envs(envs, rng, which, flat, layout, self._people, self._person)
         self._envs, self._rng = envs, rng
         if self._observer.sensor is not None:
             self._seen = Seen(self._observer.sensor, 1)
@@ -319,7 +346,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             step = kernel.step_one(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
         else:
             flat, layout = self._persons.flat, self.dynamics.layout
-            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._cells)
+            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._people, self._person)
         reward, worked, risk, attack, new_score = step
         if self._seen is not None:
             self._seen.step(envs.T, None)

@@ -4,8 +4,9 @@ Without people or measurement an observation is the state itself. [`Observer`][h
 adds, for envs made with ``people=``, ``observe_traits=`` or ``measurement=``: the measured state
 ([`Sensor`][heartpole.measurement.Sensor]: noisy, carried forward, with the measurement's age as one more
 column when ``every > 1``), then the person's traits when ``observe_traits=True`` (in
-[`People.traits`][heartpole.people.People.traits]' order). Its generators are drawn from the env's own at each
-``reset``, so that a seed reproduces everything and env 0 of a vector env draws the person a single env draws.
+[`People.traits`][heartpole.people.People.traits]' order). Its generators are spawned from the env's own at each
+``reset``, so that a seed reproduces everything, env 0 of a vector env draws the person a single env draws, and
+the states are those of the env without people or measurement.
 """
 
 from __future__ import annotations
@@ -64,13 +65,19 @@ class Observer:
         return spaces.Box(np.maximum(low, -LARGEST), np.minimum(high, LARGEST), dtype=np.float32)
 
     def generators(self, rng: np.random.Generator) -> tuple[np.random.Generator | None, np.random.Generator | None]:
-        """The people's and the measurement's generators of an episode start, each seeded by one 64-bit draw
-        from the env's ``rng`` (in that order, only for what the env has), before the env's keys."""
-        drawn = []
-        for needed in (self.people is not None, self.sensor is not None):
-            seed = int(rng.integers(0, 2**64, dtype=np.uint64)) if needed else None
-            drawn.append(None if seed is None else np.random.default_rng(seed))
-        return drawn[0], drawn[1]
+        """The people's and the measurement's generators of a ``reset``: children spawned from the seed sequence
+        of the env's ``rng`` (``rng.bit_generator.seed_seq.spawn``), which draw nothing from ``rng`` itself,
+        so the env's keys and hence its states are those of the same env without people or measurement. A
+        generator without a seed sequence gives two 64-bit draws instead."""
+        seeds: list[Any]
+        sequence = getattr(rng.bit_generator, "seed_seq", None)
+        if isinstance(sequence, np.random.SeedSequence):
+            seeds = list(sequence.spawn(2))
+        else:
+            seeds = [int(x) for x in rng.integers(0, 2**64, size=2, dtype=np.uint64)]
+        people = None if self.people is None else np.random.default_rng(seeds[0])
+        sensor = None if self.sensor is None else np.random.default_rng(seeds[1])
+        return people, sensor
 
 
 class Seen:

@@ -31,6 +31,8 @@ from heartpole.kernel import F32, U32, U64, add32, carray, draws, stored, to_fix
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
 _step, _initial_state = kernel.compiled.step, kernel.compiled.initial_state
 _row_width = njit(**JIT, **INLINE)(kernel.row_width)
+STACK_PEOPLE = 4096
+"""A population's numbers up to this many (16 kB; the default cohort's are 24 people times 8) go on the stack."""
 COMPILED: JitOptions = {**JIT, "cache": False}
 """The options of the loops compiled per set of positions (closures over them, which numba's disk cache
 does not keep apart)."""
@@ -53,9 +55,49 @@ def _data_intrinsic(typingctx: Any, array: Any) -> Any:
     return pointer(nbtypes.float32)(array), codegen
 
 
+@intrinsic
+def _int_data_intrinsic(typingctx: Any, array: Any) -> Any:
+    """A pointer to the int32 data of ``array``."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return struct_proxy(signature.args[0])(context, builder, value=args[0]).data
+
+    pointer: Any = nbtypes.CPointer
+    return pointer(nbtypes.int32)(array), codegen
+
+
+@intrinsic
+def _stack_buffer_intrinsic(typingctx: Any) -> Any:
+    """A pointer to room for `STACK_PEOPLE` float32 on the stack of the compiled function that calls it."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return kernel.alloca_once(builder, context.get_value_type(nbtypes.float32), size=STACK_PEOPLE)
+
+    pointer: Any = nbtypes.CPointer
+    return pointer(nbtypes.float32)(), codegen
+
+
 _data: Any = _data_intrinsic
+_int_data: Any = _int_data_intrinsic
+_stack_buffer: Any = _stack_buffer_intrinsic
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _data = lambda array: array.ravel()  # noqa: E731
+    _data = _int_data = lambda array: array.ravel()  # noqa: E731
+
+
+@njit(**JIT, **INLINE)
+def _stack_people(people: Any) -> Any:
+    """The people's numbers ``(P, k)`` (at most `STACK_PEOPLE`) copied to the caller's stack: each env's are
+    then gathered from memory no written array overlaps, which LLVM vectorises without checks at run time.
+    (Larger tables, a distribution's with one row per env, are read where they are: slower, the same.)"""
+    table = carray(_stack_buffer(), people.shape)
+    for p in range(people.shape[0]):
+        for k in range(people.shape[1]):
+            table[p, k] = people[p, k]
+    return table
+
+
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    _stack_people = lambda people: people  # type: ignore[assignment]  # noqa: E731
 
 
 def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
@@ -75,23 +117,23 @@ def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variabl
     return njit(**COMPILED, **INLINE)(namespace["set_number"])
 
 
-def _overlay(positions: tuple[int, ...], layout: tuple[int, int, int], row: int = 1) -> Any:
+def _overlay(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[int, int, int]) -> Any:
     """A compiled ``own(effects, tables, action, cells, i)``: ``(effects, tables)`` with the env's own numbers
     at ``positions`` (``cells[row + k][i]`` for ``positions[k]``), the action's only where it is ``action``.
     A chain of one function per position, each with its indices as constants: nothing for LLVM to unroll."""
     if not positions:
         return njit(**COMPILED, **INLINE)(lambda effects, tables, action, cells, i: (effects, tables))
-    rest = _overlay(positions[1:], layout, row + 1)
+    rest = _overlay(positions[1:], columns[1:], layout)
     num_variables, width, num_actions = layout
     owner, column = divmod(positions[0], width)
-    own, count = U64(row - 1), U64(row - 1 + len(positions))
+    own, count = U64(columns[0]), U64(max(columns) + 1)
     if owner == num_actions:  # the tables' row
         set_table = _setter(model.StepTables, kernel.TABLES, num_variables, column)
 
         @njit(**COMPILED, **INLINE)
         def overlay(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
-            values = cells[0]
-            return rest(effects, set_table(tables, values[i * count + own]), action, cells, i)
+            values = cells
+            return rest(effects, set_table(tables, values[0][U64(values[1][i]) * count + own]), action, cells, i)
 
         return overlay
     set_effect = _setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
@@ -99,8 +141,8 @@ def _overlay(positions: tuple[int, ...], layout: tuple[int, int, int], row: int 
 
     @njit(**COMPILED, **INLINE)
     def overlay_action(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
-        values = cells[0]
-        value = where(action == owner, values[i * count + own], shared(effects))
+        values = cells
+        value = where(action == owner, values[0][U64(values[1][i]) * count + own], shared(effects))
         return rest(set_effect(effects, value), tables, action, cells, i)
 
     return overlay_action
@@ -156,17 +198,21 @@ class Kernels:
             [`reset_envs`][heartpole.kernel.reset_envs], with each env's own waking alertness.
     """
 
-    def __init__(self, positions: tuple[int, ...], num_variables: int, num_actions: int) -> None:
-        own = _overlay(positions, (num_variables, kernel.row_width(num_variables), num_actions))
+    def __init__(
+        self, positions: tuple[int, ...], columns: tuple[int, ...], num_variables: int, num_actions: int
+    ) -> None:
+        own = _overlay(positions, columns, (num_variables, kernel.row_width(num_variables), num_actions))
 
         @njit(**COMPILED, **INLINE)
-        def loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any) -> None:
+        def loop(
+            envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any
+        ) -> None:
             kernel.wide_vectors()
             zeros, shape = _shape(layout)
             width = U64(_row_width(len(zeros)))
             table = _stack_table(flat, layout, zeros)
             shared = kernel.read_tables(table, U64(len(layout[2])) * width, zeros, shape)
-            values = (_data(cells),)
+            values = (_data(people), _int_data(person))
             selected = len(layout[2]) <= kernel.SELECTED_ACTIONS  # known when compiling: one branch stays
             for index in range(actions.shape[0]):
                 i = U64(index)
@@ -191,23 +237,28 @@ class Kernels:
                 results[4][i] = new_score
 
         @njit(**COMPILED)
-        def step_envs(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any) -> None:
-            loop(envs, results, actions, rng, flat, layout, cells)
+        def step_envs(
+            envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any
+        ) -> None:
+            if people.size <= STACK_PEOPLE:  # two copies of the loop, each knowing where its table is
+                loop(envs, results, actions, rng, flat, layout, _stack_people(people), person)
+            else:
+                loop(envs, results, actions, rng, flat, layout, people, person)
 
         @njit(**COMPILED)
-        def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any) -> Any:
+        def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any) -> Any:
             one = kernel.one
             results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
-            loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells)
+            loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, people, person)
             return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
         @njit(**COMPILED)
-        def reset_envs(envs: Any, rng: Any, which: Any, flat: Any, layout: Any, cells: Any) -> None:
+        def reset_envs(envs: Any, rng: Any, which: Any, flat: Any, layout: Any, people: Any, person: Any) -> None:
             zeros, shape = _shape(layout)
             tables_at = U64(len(layout[2])) * U64(_row_width(len(zeros)))
             shared = kernel.read_tables(flat, tables_at, zeros, shape)
             effects = kernel.read_effects(flat, U64(0), zeros, ())
-            values = (_data(cells),)
+            values = (_data(people), _int_data(person))
             wake = len(zeros)  # the wake-up uniform of a draw, as in a step
             for index in range(which.shape[0]):
                 if which[index]:
@@ -222,14 +273,16 @@ class Kernels:
         self.step_envs, self.reset_envs = step_envs, reset_envs
         self._step_one = step_one
 
-    def step_one(self, envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any) -> Any:
+    def step_one(self, envs: Any, action: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any) -> Any:
         """One env's step (see the class docstring); its results as Python numbers, compiled or not."""
-        reward, worked, risk, attack, new_score = self._step_one(envs, action, rng, flat, layout, cells)
+        reward, worked, risk, attack, new_score = self._step_one(envs, action, rng, flat, layout, people, person)
         return float(reward), float(worked), float(risk), bool(attack), float(new_score)
 
 
 @functools.lru_cache(maxsize=32)
-def kernels(positions: tuple[int, ...], num_variables: int, num_actions: int) -> Kernels:
+def kernels(positions: tuple[int, ...], columns: tuple[int, ...], num_variables: int, num_actions: int) -> Kernels:
     """The loops for ``positions`` of a variant's packed tables (``num_variables`` and ``num_actions`` give their
-    layout), compiled on their first call, once per process and set of positions."""
-    return Kernels(tuple(int(p) for p in positions), num_variables, num_actions)
+    layout), number ``positions[j]`` read from column ``columns[j]`` of the people's table (numbers equal for
+    every person share one: HeartPole's two fading variables fade alike), compiled on their first call, once
+    per process and set of positions."""
+    return Kernels(tuple(map(int, positions)), tuple(map(int, columns)), num_variables, num_actions)

@@ -43,21 +43,37 @@ class PersonTables:
             probes = self._packed_many(self._probes())
         self.positions = np.flatnonzero(np.any(probes != self._base.ravel(), axis=0))
         self.flat = np.ascontiguousarray(self._base.ravel())
+        columns = np.arange(len(self.positions))
+        if people.cohort:  # numbers equal for every member share a column (hypertension and alcohol fade alike)
+            values = self._cohort[:, self.positions]
+            _, first, columns = np.unique(values, axis=1, return_index=True, return_inverse=True)
+            self._unique = self.positions[first]
+            columns = np.argsort(np.argsort(first))[columns.ravel()]
+        else:
+            self._unique = self.positions
         self.kernels = person_kernel.kernels(
-            tuple(self.positions.tolist()), len(dynamics.variables), len(dynamics.actions)
+            tuple(self.positions.tolist()), tuple(columns.tolist()), len(dynamics.variables), len(dynamics.actions)
         )
 
-    def cells(self, sample: Sample) -> np.ndarray:
-        """The kernel's ``cells`` for the people of ``sample``: ``(n, k)`` float32, env by env."""
+    def arrays(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The kernel's ``people`` and ``person`` for ``n`` envs before any draw: the people's numbers at
+        `positions` (float32, a cohort's one row per member, a distribution's one row per env) and each env's
+        row of them (int32)."""
         if self.people.cohort:
-            values = self._cohort[sample.person][:, self.positions]
-        else:
-            full = self._packed_many({c: sample.column(c, self.dynamics.params) for c in self.people.columns})
-            shared = np.delete(full, self.positions, axis=1)
-            if not np.array_equal(shared, np.broadcast_to(np.delete(self._base.ravel(), self.positions), shared.shape)):
-                raise RuntimeError("a person changed a number no probe of the population changed")  # never, by design
-            values = full[:, self.positions]
-        return np.ascontiguousarray(values, dtype=np.float32)
+            table = np.ascontiguousarray(self._cohort[:, np.sort(self._unique)], dtype=np.float32)
+            return table, np.zeros(n, dtype=np.int32)
+        return np.zeros((n, len(self.positions)), dtype=np.float32), np.arange(n, dtype=np.int32)
+
+    def assign(self, people: np.ndarray, person: np.ndarray, which: np.ndarray, sample: Sample) -> None:
+        """Give the envs ``which`` (a mask, or indices) the people of ``sample`` (in env order), in place."""
+        if self.people.cohort:
+            person[which] = sample.person
+            return
+        full = self._packed_many({c: sample.column(c, self.dynamics.params) for c in self.people.columns})
+        shared = np.delete(full, self.positions, axis=1)
+        if not np.array_equal(shared, np.broadcast_to(np.delete(self._base.ravel(), self.positions), shared.shape)):
+            raise RuntimeError("a person changed a number no probe of the population changed")  # never, by design
+        people[person[which]] = full[:, self.positions]
 
     # ----------------------------------------------------------------------------------------------------
     def _packed_one(self, params: Params) -> np.ndarray:

@@ -20,7 +20,7 @@ from heartpole.env import RESET_INFO, build_dynamics, check_render_mode, episode
 from heartpole.measurement import Measurement
 from heartpole.model import Variable, check_integer
 from heartpole.observation import Observer, Seen, observe
-from heartpole.people import People
+from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
 
 INFO_KEYS = tuple(RESET_INFO)
@@ -79,6 +79,14 @@ class HeartPoleVectorEnv(VectorEnv):
       and changes nothing.
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
+
+    ``people``, ``observe_traits`` and ``measurement`` are the single env's (see its "People and
+    measurements"): each env draws its own person at ``reset`` and at every autoreset (all drawn at once from
+    one generator spawned from ``self.np_random`` at each ``reset``), ``info["person"]`` ``(num_envs,)`` int64
+    and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 hold the current episodes' people (with
+    ``SAME_STEP``, ``final_info`` holds the ended ones'), and ``self.people`` the population. The step stays one
+    compiled loop ([`heartpole.person_kernel`][heartpole.person_kernel]). With people, env 0 is still the single
+    env bit for bit; with a measurement, its noise differs after ``reset`` (drawn for all envs at once).
 
     Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
     ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
@@ -141,8 +149,10 @@ class HeartPoleVectorEnv(VectorEnv):
         # Each env's person: cohort index, traits and the kernel's numbers; the generators of people and noise.
         self._person = np.full(self.num_envs, -1, dtype=np.int64)
         self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
-        width = 0 if self._persons is None else len(self._persons.positions)
-        self._cells = np.zeros((self.num_envs, width), dtype=np.float32)
+        self._people: np.ndarray | None = None
+        self._person_row: np.ndarray | None = None
+        if self._persons is not None:
+            self._people, self._person_row = self._persons.arrays(self.num_envs)
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
 
@@ -229,7 +239,8 @@ class HeartPoleVectorEnv(VectorEnv):
             kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
         elif stepped:
             flat, layout = self._persons.flat, self.dynamics.layout  # type: ignore[union-attr]
-            self._persons.kernels.step_envs(self._envs, results, action, self._rng, flat, layout, self._cells)  # type: ignore[union-attr]
+            people, row = self._people, self._person_row
+            self._persons.kernels.step_envs(self._envs, results, action, self._rng, flat, layout, people, row)  # type: ignore[union-attr]
         reward, worked, risk, attack, new_score = results
         present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
@@ -300,7 +311,8 @@ class HeartPoleVectorEnv(VectorEnv):
         chosen = which if count == self.num_envs else slice(None)
         self._person[which] = drawn.person[chosen]
         self._traits[which] = drawn.traits()[chosen]
-        self._cells[which] = self._persons.cells(drawn)[chosen]
+        taken = drawn if count == int(np.count_nonzero(which)) else _rows(drawn, which)
+        self._persons.assign(self._people, self._person_row, which, taken)  # type: ignore[arg-type]
 
     def _person_info(self, info: dict[str, Any]) -> None:
         """Put each env's current person (cohort index, -1 for a distribution) and traits into ``info``."""
@@ -318,7 +330,8 @@ class HeartPoleVectorEnv(VectorEnv):
             if draw:
                 self._new_people(which, int(which.sum()))
             flat, layout = self._persons.flat, self.dynamics.layout
-            self._persons.kernels.reset_envs(self._envs, self._rng, which, flat, layout, self._cells)
+            people, row = self._people, self._person_row
+            self._persons.kernels.reset_envs(self._envs, self._rng, which, flat, layout, people, row)
         self._starts[which] = self._clock
         self._next_end = int(self._starts.min()) + self.max_steps
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
@@ -364,6 +377,11 @@ class HeartPoleVectorEnv(VectorEnv):
                 f"HeartPoleVectorEnv.step expects {expected}; got values from {array.min()} to {array.max()}"
             )
         return array.astype(kernel.ACTION_DTYPE)
+
+
+def _rows(sample: Sample, which: np.ndarray) -> Sample:
+    """The people of ``sample`` at the envs ``which`` (a full reset's draw, of which some envs take theirs)."""
+    return Sample(sample.people, sample.person[which], sample.values[which])
 
 
 def _write_reset_values(info: dict[str, Any], which: np.ndarray) -> None:
