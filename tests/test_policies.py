@@ -39,8 +39,8 @@ OBS = np.array(
 )
 
 
-def test_the_builtins_are_the_documented_six() -> None:
-    assert list(BUILTIN_POLICIES) == ["random", "nothing", "coffee", "reference", "expert", "optimal"]
+def test_the_builtins_are_the_documented_seven() -> None:
+    assert list(BUILTIN_POLICIES) == ["random", "nothing", "coffee", "reference", "expert", "optimal", "oracle"]
 
 
 @pytest.mark.parametrize("name", list(BUILTIN_POLICIES))
@@ -48,6 +48,10 @@ def test_the_builtins_are_the_documented_six() -> None:
 def test_builtins_map_a_batch_to_valid_integer_actions(name: str, env_id: str) -> None:
     if name == "optimal" and env_id == "HeartPole-v1":  # the solver covers v0's actions only
         with pytest.raises(NotCoveredError, match="HeartPole-v0's"):
+            load_policy(name, env_id)
+        return
+    if name == "oracle":  # without people it has no one to know (tests/test_oracle.py tests it with people)
+        with pytest.raises(ValueError, match="finite cohort.*was given no people"):
             load_policy(name, env_id)
         return
     policy = load_policy(name, env_id)

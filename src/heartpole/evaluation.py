@@ -41,6 +41,7 @@ from heartpole.rollout import base_env, episode_steps, policy_actions, vector_en
 from heartpole.solved import SOLVED_REGRET as SOLVED_REGRET
 from heartpole.solved import regret_solved
 from heartpole.stats import confidence_interval, json_interval, json_number
+from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
@@ -84,7 +85,9 @@ class EvaluationResult:
     quantity (final score - 100 x the summed heart-attack probabilities). ``score`` is the mean final
     ``work_done / time_elapsed``. Per-episode arrays (float64 or int64) are in episode order. With fewer
     than two episodes the intervals are ``nan``; without an optimum the regret is, and ``no_regret_reason``
-    says why.
+    says why. Under ``people``, ``person`` is each episode's person (cohort index, -1 without one) and
+    ``oracle_regret`` the mean of (that person's optimum - expected-risk return), [`heartpole.truth`][heartpole.truth]'s
+    (``nan`` without people or a cohort's optima: ``no_oracle_regret_reason`` says why).
     """
 
     policy: str
@@ -112,10 +115,14 @@ class EvaluationResult:
     expected_heart_attacks: np.ndarray = field(repr=False, compare=False)
     drinks: np.ndarray = field(repr=False, compare=False)
     sleeps: np.ndarray = field(repr=False, compare=False)
+    person: np.ndarray = field(repr=False, compare=False)
     optimal_return: float = math.nan
     regret: float = math.nan
     regret_ci95: tuple[float, float] = (math.nan, math.nan)
     no_regret_reason: str | None = None
+    oracle_regret: float = math.nan
+    oracle_regret_ci95: tuple[float, float] = (math.nan, math.nan)
+    no_oracle_regret_reason: str | None = None
 
     def with_regret(self, optimal_return: float, error_bound: float = 0.0) -> EvaluationResult:
         """This result with its regret: ``optimal_return`` minus the expected-risk return.
@@ -178,10 +185,13 @@ class EvaluationResult:
             "regret_ci95": json_interval(self.regret_ci95),
             "solved": self.solved,
             "no_regret_reason": self.no_regret_reason,
+            "oracle_regret": json_number(self.oracle_regret),
+            "oracle_regret_ci95": json_interval(self.oracle_regret_ci95),
+            "no_oracle_regret_reason": self.no_oracle_regret_reason,
             "seconds": round(self.seconds, 3),
         }
         if per_episode:
-            for key in ("returns", "expected_returns", "scores", "heart_attacks", "drinks", "sleeps"):
+            for key in ("returns", "expected_returns", "scores", "heart_attacks", "drinks", "sleeps", "person"):
                 out[key] = getattr(self, key).tolist()
         return out
 
@@ -263,6 +273,7 @@ class _Episodes:
     expected_heart_attacks: np.ndarray
     drinks: np.ndarray
     sleeps: np.ndarray
+    person: np.ndarray
 
     @classmethod
     def concatenate(cls, parts: Sequence[_Episodes]) -> _Episodes:
@@ -295,7 +306,8 @@ def evaluate(
             given the number of env steps done since its last call.
         regret: add the regret against :mod:`heartpole.optimum`'s optimum where the solver covers the env
             (solved before the episodes run, once per parameter set, and cached; elsewhere ``nan``, with
-            ``no_regret_reason`` saying why).
+            ``no_regret_reason`` saying why); under a finite cohort of ``people`` the oracle regret instead
+            (each person solved once and cached, see [`people_truth`][heartpole.truth.people_truth]).
 
     Raises:
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
@@ -310,6 +322,7 @@ def evaluate(
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     env_kwargs = dict(env_kwargs or {})
+    truth = people_truth(env_id, env_kwargs, show_progress=progress is True) if regret else None
     act, name = _resolve(policy, env_id, env_kwargs, seed)
     solution = _optimum(env_id, env_kwargs) if regret else None  # before the episodes: no failure loses them
     started = time.perf_counter()
@@ -328,6 +341,7 @@ def evaluate(
         max_steps=max_steps,
         seconds=time.perf_counter() - started,
     )
+    result = replace(result, **oracle_fields(truth, result.person, result.expected_returns))
     if solution is None or isinstance(solution, str):
         return replace(result, no_regret_reason=solution)
     return result.with_regret(solution.expected_return, solution.error_bound)
@@ -337,6 +351,8 @@ def _optimum(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | st
     """The optimum of the env (:func:`heartpole.optimum.optimum`), or why the solver does not cover it."""
     from heartpole.optimum import NotCoveredError, optimum
 
+    if env_kwargs.get("people") is not None:
+        return NO_SINGLE_OPTIMUM
     try:
         return optimum(env_id, env_kwargs)
     except NotCoveredError as error:
@@ -424,6 +440,7 @@ def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick:
         expected_heart_attacks=risks,
         drinks=drinks,
         sleeps=sleeps,
+        person=np.full(size, -1, dtype=np.int64) if step.person is None else step.person,
     )
 
 

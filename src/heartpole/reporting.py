@@ -39,10 +39,16 @@ def has_interval(interval: Sequence[float]) -> bool:
 def missing_notes(results: Sequence[EvaluationResult]) -> list[str]:
     """One line each for what ``results`` lack: intervals (fewer than two episodes), the regret (and why)."""
     notes = [NO_INTERVAL] if any(result.episodes < 2 for result in results) else []
-    reasons = [result.no_regret_reason for result in results if result.no_regret_reason]
-    if reasons:
-        notes.append(f"no regret: {reasons[0]}")
+    for what, key in (("regret", "no_regret_reason"), ("oracle regret", "no_oracle_regret_reason")):
+        reasons = [getattr(result, key) for result in results if getattr(result, key)]
+        if reasons:
+            notes.append(f"no {what}: {reasons[0]}")
     return notes
+
+
+def under_people(results: Sequence[EvaluationResult]) -> bool:
+    """Whether ``results`` ran under ``people`` (they have an oracle regret, or a reason for none)."""
+    return any(math.isfinite(r.oracle_regret) or r.no_oracle_regret_reason for r in results)
 
 
 def plus_minus(value: float, interval: tuple[float, float]) -> str:
@@ -61,12 +67,15 @@ def plus_minus(value: float, interval: tuple[float, float]) -> str:
 
 
 def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[list[object]]]:
-    """Headers and rows of the results table (best expected-risk return first), values as text."""
+    """Headers and rows of the results table (best expected-risk return first), values as text; under people
+    the oracle regret takes the regret's column (one optimum is no one's: see
+    [`heartpole.truth`][heartpole.truth])."""
+    oracle = under_people(results)
     headers = [
         "rank",
         "policy",
         "expected-risk return (95% CI)",
-        "regret (95% CI)",
+        "oracle regret (95% CI)" if oracle else "regret (95% CI)",
         "realized return (95% CI)",
         "heart attacks / ep",
         "score",
@@ -78,7 +87,9 @@ def table_rows(results: Sequence[EvaluationResult]) -> tuple[list[str], list[lis
             n,
             result.policy,
             plus_minus(result.expected_return, result.expected_ci95),
-            plus_minus(result.regret, result.regret_ci95),
+            plus_minus(result.oracle_regret, result.oracle_regret_ci95)
+            if oracle
+            else plus_minus(result.regret, result.regret_ci95),
             plus_minus(result.mean_return, result.ci95),
             f"{result.heart_attacks_per_episode:.3f}",
             f"{result.score:.4f}",

@@ -8,7 +8,9 @@ with vector_env("HeartPole-v0", {}, num_envs=100) as env:
 
 [`vector_env`][heartpole.rollout.vector_env] makes (and closes) the native vector env of an id;
 [`episode_steps`][heartpole.rollout.episode_steps] resets it once and yields each of its ``max_steps``
-steps, every env of it at the same step, and checks at the end that every episode ended there.
+steps, every env of it at the same step, and checks at the end that every episode ended there. In an env
+with ``people``, each step carries each episode's person (the cohort index the reset's ``info["person"]``
+gave), and [`policy_actions`][heartpole.rollout.policy_actions] passes it to a policy that ``needs_person``.
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ if TYPE_CHECKING:
     from heartpole.vector import HeartPoleVectorEnv
 
 Choose = Callable[[np.ndarray, int], np.ndarray]
-"""``choose(observations, t) -> actions``: the actions of every env at step ``t`` (0 to ``max_steps - 1``)."""
+"""``choose(observations, t) -> actions``: the actions of every env at step ``t`` (0 to ``max_steps - 1``).
+A ``choose`` with a true ``needs_person`` attribute is called as ``choose(observations, t, person)``, ``person``
+as in [`EpisodeStep`][heartpole.rollout.EpisodeStep]."""
 
 
 class EpisodeStep(NamedTuple):
@@ -39,6 +43,9 @@ class EpisodeStep(NamedTuple):
     observations: np.ndarray
     rewards: np.ndarray
     info: dict[str, Any]
+    person: np.ndarray | None = None
+    """``(n,)`` int64: each env's episode's person (cohort index, -1 for a distribution's); ``None`` without
+    ``people``."""
 
 
 @contextmanager
@@ -76,14 +83,22 @@ def episode_steps(env: VectorEnv, reset_seed: int, choose: Choose) -> Iterator[E
             has been taken).
     """
     max_steps = int(base_env(env).max_steps)
-    observations, _ = env.reset(seed=reset_seed)
+    observations, reset_info = env.reset(seed=reset_seed)
+    person = episode_people(reset_info)
+    wants_person = getattr(choose, "needs_person", False)
     truncated = np.zeros(env.num_envs, dtype=bool)
     for t in range(max_steps):
-        actions = choose(observations, t)
+        actions = choose(observations, t, person) if wants_person else choose(observations, t)  # type: ignore[call-arg]
         observations, rewards, _, truncated, info = env.step(actions)
-        yield EpisodeStep(t, actions, observations, rewards, info)
+        yield EpisodeStep(t, actions, observations, rewards, info, person)
     if not np.all(truncated):
         raise RuntimeError(f"episodes did not end after max_steps={max_steps} steps")
+
+
+def episode_people(info: Mapping[str, Any]) -> np.ndarray | None:
+    """Each env's person from a reset's ``info`` (``info["person"]`` as int64), or ``None`` without people."""
+    person = info.get("person")
+    return None if person is None else np.asarray(person, dtype=np.int64).reshape(-1)
 
 
 def check_actions(actions: object, size: int, num_actions: int, name: str) -> np.ndarray:
@@ -101,12 +116,22 @@ def check_actions(actions: object, size: int, num_actions: int, name: str) -> np
 
 def policy_actions(act: Policy, name: str, env: VectorEnv) -> Choose:
     """``choose`` for [`episode_steps`][heartpole.rollout.episode_steps]: ``act``'s actions, checked, with the
-    decisions left passed to a policy that needs them (every env of ``env`` is at the same step)."""
-    base = base_env(env)
-    size, max_steps, num_actions = base.num_envs, int(base.max_steps), len(base.dynamics.actions)
+    decisions left passed to a policy that needs them (every env of ``env`` is at the same step) and each
+    episode's person to a policy that ``needs_person``."""
+    return _PolicyChoice(act, name, env)
 
-    def choose(observations: np.ndarray, t: int) -> np.ndarray:
-        left = np.full(size, max_steps - t, dtype=np.int64)
-        return check_actions(act_batch(act, observations, left), size, num_actions, name)
 
-    return choose
+class _PolicyChoice:
+    """[`policy_actions`][heartpole.rollout.policy_actions]' ``choose``: it takes the person, for any policy."""
+
+    needs_person = True
+
+    def __init__(self, act: Policy, name: str, env: VectorEnv) -> None:
+        base = base_env(env)
+        self.act, self.name = act, name
+        self.size, self.max_steps, self.num_actions = base.num_envs, int(base.max_steps), len(base.dynamics.actions)
+
+    def __call__(self, observations: np.ndarray, t: int, person: np.ndarray | None = None) -> np.ndarray:
+        left = np.full(self.size, self.max_steps - t, dtype=np.int64)
+        actions = act_batch(self.act, observations, left, person)
+        return check_actions(actions, self.size, self.num_actions, self.name)

@@ -14,6 +14,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+import numpy as np
+
 from heartpole import files
 from heartpole.cli.common import (
     CommandError,
@@ -33,8 +35,8 @@ if TYPE_CHECKING:
 ORDER = 10
 
 POLICY_HELP = (
-    "a built-in policy (random, nothing, coffee, reference, expert, optimal) or the path of a model .zip saved by "
-    "'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
+    "a built-in policy (random, nothing, coffee, reference, expert, optimal; oracle with --people) or the path "
+    "of a model .zip saved by 'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
 )
 PROTOCOL = (
     "Every policy runs the same episodes: same seed, same chunks of side-by-side envs, so the same random "
@@ -107,6 +109,29 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="episodes run side by side (default: all of them, up to 10000)",
     )
+    parser.add_argument(
+        "--people",
+        default=None,
+        metavar="NAME",
+        help="a population of people, one drawn per episode (named: default); reports the oracle regret",
+    )
+    parser.add_argument(
+        "--observe-traits", action="store_true", help="append each person's traits to the observation (--people)"
+    )
+
+
+def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The env keyword arguments of ``--people`` and ``--observe-traits``, each person's optimum solved (once,
+    cached; a progress bar meanwhile) before any policy is loaded."""
+    from heartpole.truth import people_truth
+
+    if args.observe_traits and args.people is None:
+        raise CommandError("--observe-traits needs --people (the traits are the person's)")
+    if args.people is None:
+        return {}
+    kwargs = {"people": args.people, "observe_traits": True} if args.observe_traits else {"people": args.people}
+    _library(lambda: people_truth(args.env, kwargs, show_progress=True))
+    return kwargs
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -115,6 +140,7 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     """``heartpole evaluate``: one policy's result, as a table or JSON."""
+    args.env_kwargs = _env_kwargs(args)
     result = _evaluate(args.policy, _policy(args.policy, args), args)
     print(json.dumps(result.to_dict(), allow_nan=False) if args.json else format_result(result))
     return 0
@@ -126,6 +152,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
     if len(args.policy) != 2:
         raise CommandError(f"compare needs exactly two --policy options, got {len(args.policy)}")
+    args.env_kwargs = _env_kwargs(args)
     policies = [_policy(spec, args) for spec in args.policy]  # both checked before either runs
     a, b = (_evaluate(spec, policy, args) for spec, policy in zip(args.policy, policies))
     comparison = _library(lambda: Comparison.of(a, b))
@@ -139,9 +166,10 @@ def run_baselines(args: argparse.Namespace) -> int:
     from heartpole.policies import BUILTIN_POLICIES, available_builtins
 
     markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
+    args.env_kwargs = _env_kwargs(args)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     loaded = {spec: _policy(spec, args) for spec in extras}  # fail before the long run, not after it
-    builtins = _library(lambda: available_builtins(args.env))
+    builtins = _library(lambda: available_builtins(args.env, args.env_kwargs))
     results = rank(_evaluate(spec, loaded.get(spec, spec), args) for spec in [*builtins, *extras])
     if args.json:  # printed before the files are written: a failure writing them cannot lose the results
         data = {"results": [r.to_dict() for r in results], "published": _published_dicts()}
@@ -163,7 +191,7 @@ def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
     builds it with the run's seed), or the loaded model (the user hears which statistics it applies)."""
     from heartpole.policies import BUILTIN_POLICIES, load_policy
 
-    policy = _library(lambda: load_policy(spec, args.env))
+    policy = _library(lambda: load_policy(spec, args.env, env_kwargs=args.env_kwargs))
     if spec in BUILTIN_POLICIES:
         return spec
     tell_normalization(policy)
@@ -179,7 +207,15 @@ def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> Evalua
     max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
     with progress(args.episodes * max_steps, f"{spec}") as bar:
         return _library(
-            lambda: evaluate(policy, args.env, args.episodes, args.seed, num_envs=args.num_envs, progress=bar.update)
+            lambda: evaluate(
+                policy,
+                args.env,
+                args.episodes,
+                args.seed,
+                num_envs=args.num_envs,
+                env_kwargs=args.env_kwargs,
+                progress=bar.update,
+            )
         )
 
 
@@ -235,6 +271,9 @@ def format_result(result: EvaluationResult) -> str:
     ]
     if math.isfinite(result.regret):
         rows.insert(1, ["regret (optimum - expected-risk return)", *_interval(result.regret, result.regret_ci95, 5)])
+    if math.isfinite(result.oracle_regret):
+        label = "oracle regret (person's optimum - expected-risk return)"
+        rows.insert(1, [label, *_interval(result.oracle_regret, result.oracle_regret_ci95, 5)])
     header = (
         f"{result.policy} on {result.env_id}: {_episodes(result.episodes)} of {result.max_steps} steps, "
         f"seed {result.seed} ({result.seconds:.1f} s)"
@@ -304,6 +343,11 @@ def format_comparison(comparison: Comparison) -> str:
                 _joined(-comparison.expected_difference, (-high, -low), 5),
             ],
         )
+    if math.isfinite(a.oracle_regret) and math.isfinite(b.oracle_regret) and np.array_equal(a.person, b.person):
+        low, high = comparison.expected_ci95  # the same people: the gap's difference is the returns' negated
+        paired = _joined(-comparison.expected_difference, (-high, -low), 4)
+        oracle = [_joined(r.oracle_regret, r.oracle_regret_ci95, 4) for r in (a, b)]
+        rows.insert(1, ["oracle regret", *oracle, paired])
     header = (
         f"{a.policy} - {b.policy} on {a.env_id}: {_episodes(a.episodes, 'paired ')} of {a.max_steps} steps, "
         f"seed {a.seed}, common random numbers"
@@ -405,6 +449,9 @@ CSV_FIELDS = (
     "regret",
     "regret_ci95_low",
     "regret_ci95_high",
+    "oracle_regret",
+    "oracle_regret_ci95_low",
+    "oracle_regret_ci95_high",
 )
 
 
@@ -418,6 +465,7 @@ def baselines_csv(results: Sequence[EvaluationResult]) -> str:
         row["ci95_low"], row["ci95_high"] = row.pop("ci95")
         row["expected_ci95_low"], row["expected_ci95_high"] = row.pop("expected_ci95")
         row["regret_ci95_low"], row["regret_ci95_high"] = row.pop("regret_ci95")
+        row["oracle_regret_ci95_low"], row["oracle_regret_ci95_high"] = row.pop("oracle_regret_ci95")
         writer.writerow({key: row.get(key) for key in CSV_FIELDS} | {"source": "heartpole evaluate"})
     for published in _published_dicts():
         writer.writerow({key: published.get(key) for key in CSV_FIELDS})

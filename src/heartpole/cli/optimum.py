@@ -29,7 +29,12 @@ expected return when the grid is halved; --check runs the `optimal` policy throu
 
 Covered: HeartPole-v0's actions and variables with other parameters (--param), as long as drinking
 provably never pays (refused with the reason otherwise: HeartPole-v1, heart_attack_proclivity=0, short
-episodes). See docs/optimum.md."""
+episodes). See docs/optimum.md.
+
+--people NAME solves each person of a population (named: default) once, cached (a progress bar while it
+solves; the first solve of the default cohort takes a minute or two), and prints each person's optimum;
+--check then evaluates `oracle` and `expert` under the people and reports their oracle regret. See
+docs/people.md."""
 
 
 def register(subparsers: Subparsers) -> None:
@@ -40,7 +45,7 @@ def register(subparsers: Subparsers) -> None:
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  heartpole optimum\n  heartpole optimum --param heart_attack_proclivity=0.8 --out opt/\n"
-        "  heartpole optimum --grid 800 --check 0 --json",
+        "  heartpole optimum --grid 800 --check 0 --json\n  heartpole optimum --people default",
     )
     parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
     parser.add_argument(
@@ -64,6 +69,7 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the Monte-Carlo check (default 0)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    parser.add_argument("--people", metavar="NAME", help="solve each person of a population instead (named: default)")
     parser.set_defaults(handler=run_optimum)
 
 
@@ -74,6 +80,8 @@ def run_optimum(args: argparse.Namespace) -> int:
     if args.check < 0:
         raise CommandError(f"--check must be an integer >= 0, got {args.check}")
     kwargs = _params(args.param)
+    if args.people is not None:
+        return _run_people(args, kwargs)
     print(f"solving {args.env}{' ' + str(kwargs) if kwargs else ''}...", file=sys.stderr, flush=True)
     try:
         if args.grid is None:
@@ -95,6 +103,38 @@ def run_optimum(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
+    """``--people``: each person's optimum (solved or loaded, a bar meanwhile), and the check under people."""
+    from heartpole.optimum import PeopleOptimum
+    from heartpole.truth import people_truth
+
+    if args.grid is not None or args.out:
+        raise CommandError("--grid and --out solve one person; with --people each person gets the default grid")
+    env_kwargs = {**kwargs, "people": args.people}
+    try:
+        truth = people_truth(args.env, env_kwargs, show_progress=True)
+        if not isinstance(truth, PeopleOptimum):
+            raise CommandError(f"--people {args.people}: {truth}")
+        checks = _check(args, env_kwargs, ("oracle", "expert")) if args.check else {}
+    except (ValueError, TypeError, OSError) as error:
+        raise CommandError(" ".join(str(error).split())) from None
+    rows = [
+        [person.name, f"{s.expected_return:.5f}", f"{s.error_bound:.1e}", f"{s.expected_sleeps:.2f}", s.max_awake]
+        for person, s in zip(truth.people.cohort, truth.solutions)
+    ]
+    if args.json:
+        people = [{"name": row[0], **s.summary()} for row, s in zip(rows, truth.solutions)]
+        print(json.dumps({"people": people, **{f"check_{k}": v.to_dict() for k, v in checks.items()}}))
+        return 0
+    headers = ["person", "optimal expected return", "grid error", "sleeps / episode", "always sleeps after"]
+    print(f"{args.env}, people {args.people}: each person's optimum")
+    print(format_table(headers, rows))
+    for name, result in checks.items():
+        low, high = result.oracle_regret_ci95
+        print(f"{name}: oracle regret {result.oracle_regret:.5f} [{low:.5f}, {high:.5f}] ({result.episodes} episodes)")
+    return 0
+
+
 def _params(items: list[str]) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for item in items:
@@ -109,12 +149,14 @@ def _params(items: list[str]) -> dict[str, Any]:
     return params
 
 
-def _check(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, EvaluationResult]:
+def _check(
+    args: argparse.Namespace, kwargs: dict[str, Any], policies: tuple[str, ...] = ("optimal", "expert")
+) -> dict[str, EvaluationResult]:
     from heartpole.evaluation import evaluate
     from heartpole.progress import progress
 
     results = {}
-    for policy in ("optimal", "expert"):
+    for policy in policies:
         steps = args.check * int(kwargs.get("max_steps", 1000))
         with progress(steps, f"checking {policy}") as bar:
             results[policy] = evaluate(policy, args.env, args.check, args.seed, env_kwargs=kwargs, progress=bar.update)

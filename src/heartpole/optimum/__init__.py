@@ -64,7 +64,7 @@ from .drinking import (
     solve_drinking,
 )
 from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_drinks, coffee_check, drink_floor
-from .people import OracleRegret, PeopleOptimum, oracle_regret, solve_people
+from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regret, solve_people, split_people
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
 
@@ -98,4 +98,6 @@ __all__ = [
     "solve_drinking",
     "solve_params",
     "solve_people",
+    "split_people",
+    "POPULATION_KWARGS",
 ]

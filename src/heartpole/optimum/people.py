@@ -36,6 +36,10 @@ SOLVED_HERE_SECONDS = 0.5
 
 ProgressCallback = Callable[[int, int], None]
 """Called as ``progress(done, total)`` after each distinct person is solved or loaded."""
+POPULATION_KWARGS = ("people", "observe_traits", "measurement")
+"""An env's keyword arguments about who the person is and what is observed: none is a person's parameter, so
+[`split_people`][heartpole.optimum.people.split_people] sets them apart (each person's optimum is the
+full-information optimum of their MDP, whatever the observation shows)."""
 
 
 @dataclass(frozen=True)
@@ -158,6 +162,19 @@ class PeopleOptimum:
         return oracle_regret(self.expected_returns, person, expected_returns, self.error_bounds)
 
 
+def split_people(env_kwargs: Mapping[str, Any] | None) -> tuple[People | None, dict[str, Any]]:
+    """The population of an env's keyword arguments (``people=``, resolved; ``None`` without) and the rest of
+    them without [`POPULATION_KWARGS`][heartpole.optimum.people.POPULATION_KWARGS]: the env whose parameters
+    each person changes.
+
+    Raises:
+        ValueError, TypeError: a ``people`` that [`People.resolve`][heartpole.people.People.resolve] refuses.
+    """
+    kwargs = dict(env_kwargs or {})
+    people = People.resolve(kwargs.get("people"))
+    return people, {key: value for key, value in kwargs.items() if key not in POPULATION_KWARGS}
+
+
 def solve_people(
     people: People | str,
     env_id: str = "HeartPole-v0",
@@ -170,13 +187,14 @@ def solve_people(
     caches (memory and disk: later calls only load).
 
     The first distinct person is looked up here; if that took a solve (longer than
-    [`SOLVED_HERE_SECONDS`][heartpole.optimum.people.SOLVED_HERE_SECONDS]), the others are solved
+    ``SOLVED_HERE_SECONDS``), the others are solved
     ``processes`` at a time in worker processes (spawned: safe beside numba's threads), else here.
 
     Args:
         people: a finite cohort, or a population's name (``"default"``).
-        env_id: the env whose parameters each person changes (a person's fields win).
-        env_kwargs: that env's keyword arguments.
+        env_id: the env whose parameters each person changes.
+        env_kwargs: its keyword arguments (a person's fields win;
+            [`POPULATION_KWARGS`][heartpole.optimum.people.POPULATION_KWARGS] are left out).
         processes: worker processes (default: 2, or 1 on a one-core machine).
         progress: called as ``progress(done, total)`` after each distinct person.
 
@@ -192,7 +210,7 @@ def solve_people(
     workers = min(2, os.cpu_count() or 1) if processes is None else processes
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
-    base = dict(env_kwargs or {})
+    base = split_people(env_kwargs)[1]  # the env's own population, if any, is not a parameter
     kwargs = [{**base, **person.values()} for person in cohort.cohort]
     jobs: dict[tuple[tuple[str, Any], ...], tuple[str, dict[str, Any]]] = {}
     for person, changed in zip(cohort.cohort, kwargs):

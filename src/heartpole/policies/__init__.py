@@ -27,15 +27,20 @@ passes it; other loops must pass it too (the env counts decisions: ``env.unwrapp
 since reset).
 
 Built-ins ([`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES]): ``random``, ``nothing``, ``coffee``,
-``reference``, ``expert`` and ``optimal`` (the solved optimum of [`heartpole.optimum`][heartpole.optimum], which needs
-the decisions left). [`load_policy`][heartpole.policies.load_policy] turns a built-in name or the path of a
-Stable-Baselines3 model saved by ``heartpole train`` (or by the JAX trainer, which saves the same files) into a
-[`Policy`][heartpole.policies.Policy].
+``reference``, ``expert``, ``optimal`` (the solved optimum of [`heartpole.optimum`][heartpole.optimum], which needs
+the decisions left) and ``oracle`` (in an env with a finite cohort of ``people``: each episode's person's own optimum).
+
+The person. A policy with a true attribute ``needs_person`` is also called with ``person=``, the cohort index of each
+env's person (``info["person"]`` of an env made with ``people=``): [`act_batch`][heartpole.policies.act_batch] passes
+it as it passes the decisions left, and refuses such a policy without it.
+
+[`load_policy`][heartpole.policies.load_policy] turns a built-in name or the path of a Stable-Baselines3 model saved
+by ``heartpole train`` (or by the JAX trainer, which saves the same files) into a [`Policy`][heartpole.policies.Policy].
 
 The package's modules: ``common`` (the types, the file names of a training run,
-[`act_batch`][heartpole.policies.act_batch]), ``builtins`` (the built-in policies), ``saved`` (models saved by
-``heartpole train``, loaded with Stable-Baselines3, which is imported only when a model is loaded). Everything is
-importable from here.
+[`act_batch`][heartpole.policies.act_batch]), ``builtins`` (the built-in policies), ``oracle`` (the ``oracle``
+policy), ``saved`` (models saved by ``heartpole train``, loaded with Stable-Baselines3, which is imported only when a
+model is loaded). Everything is importable from here.
 """
 
 from __future__ import annotations
@@ -68,6 +73,7 @@ from heartpole.policies.common import (
     Actions,
     DecisionsLeft,
     Observations,
+    PersonIndex,
     Policy,
     Predictor,
     act_batch,
@@ -75,6 +81,7 @@ from heartpole.policies.common import (
     observation_batch,
     policy_name,
 )
+from heartpole.policies.oracle import OraclePolicy, oracle_policy
 from heartpole.rates import expert_rate
 from heartpole.registry import env_dynamics, quiet_version_warnings
 
@@ -83,6 +90,7 @@ __all__ = [
     "Observations",
     "Actions",
     "DecisionsLeft",
+    "PersonIndex",
     "Predictor",
     "SB3_ALGORITHMS",
     "MODEL_NAME",
@@ -102,6 +110,8 @@ __all__ = [
     "ExpertPolicy",
     "expert_rate",
     "OptimalPolicy",
+    "OraclePolicy",
+    "oracle_policy",
     "BUILTIN_POLICIES",
     "available_builtins",
     "make_policy",
@@ -145,6 +155,8 @@ def load_policy(
     array([1, 1, 1])
     """
     dynamics = env_dynamics(env_id, env_kwargs)
+    if spec == "oracle":
+        return oracle_policy(env_id, env_kwargs, dynamics)
     if spec in BUILTIN_POLICIES:
         return make_policy(spec, dynamics, rng)
     if not _looks_like_path(spec):

@@ -1,6 +1,7 @@
-"""The built-in policies: ``random``, ``nothing``, ``coffee``, ``reference``, ``expert`` and ``optimal``, each
-built for an env's [`Dynamics`][heartpole.dynamics.Dynamics] by name (see
-[`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES])."""
+"""The built-in policies: ``random``, ``nothing``, ``coffee``, ``reference``, ``expert``, ``optimal`` and
+``oracle``, each built for an env's [`Dynamics`][heartpole.dynamics.Dynamics] by name (see
+[`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES]; ``oracle`` needs the env's people too, see
+[`oracle_policy`][heartpole.policies.oracle.oracle_policy])."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from heartpole.actions import TAKE_NAP
 from heartpole.dynamics import Dynamics
 from heartpole.model import ALERTNESS, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT, productivity
 from heartpole.policies.common import Actions, DecisionsLeft, Observations, Policy, default_dynamics, observation_batch
+from heartpole.policies.oracle import OraclePolicy
 from heartpole.rates import RATE_WITH_NAPS, best_known_rate
 
 if TYPE_CHECKING:
@@ -226,18 +228,23 @@ BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
     "reference": ReferencePolicy,
     "expert": ExpertPolicy,
     "optimal": OptimalPolicy,
+    "oracle": OraclePolicy,
 }
 """The built-in policies by name; each entry builds the policy for a :class:`~heartpole.dynamics.Dynamics`."""
 
 
 def available_builtins(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> list[str]:
     """The built-in policy names that can act in ``env_id``: all of them, but ``optimal`` only where
-    :mod:`heartpole.optimum` covers the variant (solving it once, cached)."""
-    from heartpole.optimum import available
+    [`heartpole.optimum`][heartpole.optimum] covers the variant (solving it once, cached), and ``oracle`` only
+    where ``env_kwargs`` give a finite cohort of ``people``."""
+    from heartpole.optimum import available, split_people
 
+    people, base = split_people(env_kwargs)
     names = list(BUILTIN_POLICIES)
-    if available(env_id, env_kwargs) is None:
+    if available(env_id, base) is None:
         names.remove("optimal")
+    if people is None or not people.finite:
+        names.remove("oracle")
     return names
 
 
@@ -245,7 +252,8 @@ def make_policy(name: str, dynamics: Dynamics | None = None, rng: np.random.Gene
     """The built-in policy ``name`` for ``dynamics`` (default: v0's); ``rng`` seeds ``random`` only.
 
     Raises:
-        ValueError: for an unknown name, listing the valid ones.
+        ValueError: for an unknown name, listing the valid ones, and for ``oracle``, which needs the env's
+            people ([`load_policy`][heartpole.policies.load_policy] builds it from the env's keyword arguments).
     """
     if name not in BUILTIN_POLICIES:
         raise ValueError(f"unknown policy {name!r}; built-in policies are {', '.join(BUILTIN_POLICIES)}")

@@ -18,6 +18,8 @@ Actions = np.ndarray
 """A batch of actions, ``(n,)`` integers in ``0 .. num_actions - 1``."""
 DecisionsLeft = int | np.ndarray | None
 """The decisions left in each env's episode (a number for all, ``(n,)`` integers, or ``None``: unknown)."""
+PersonIndex = np.ndarray | None
+"""The cohort index of each env's person (``(n,)`` integers, ``info["person"]``), or ``None``: unknown."""
 Policy = Callable[[Observations], Actions]
 """A policy: observations ``(n, obs_dim)`` float32 -> integer actions ``(n,)``."""
 
@@ -70,8 +72,19 @@ def policy_name(policy: object) -> str:
     return type(policy).__name__
 
 
-def act_batch(policy: Policy, obs: Observations, decisions_left: DecisionsLeft) -> Actions:
-    """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``."""
-    if getattr(policy, "needs_decisions_left", False):
-        return policy(obs, decisions_left)  # type: ignore[call-arg]
-    return policy(obs)
+def act_batch(policy: Policy, obs: Observations, decisions_left: DecisionsLeft, person: PersonIndex = None) -> Actions:
+    """``policy``'s actions for ``obs``, passing ``decisions_left`` to a policy that ``needs_decisions_left``
+    (second argument) and ``person=`` to one that ``needs_person``.
+
+    Raises:
+        ValueError: a policy that needs the person, called without it (an env without ``people``).
+    """
+    args: tuple[DecisionsLeft, ...] = (decisions_left,) if getattr(policy, "needs_decisions_left", False) else ()
+    if not getattr(policy, "needs_person", False):
+        return policy(obs, *args)
+    if person is None:
+        raise ValueError(
+            f"policy {policy_name(policy)!r} needs each episode's person (info['person']): run it in an env "
+            "made with people= (a finite cohort, such as 'default')"
+        )
+    return policy(obs, *args, person=person)  # type: ignore[call-arg]
