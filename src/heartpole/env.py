@@ -26,7 +26,7 @@ CONSTRUCTOR_KEYWORDS = (
     "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps", "people",
     "observe_traits", "measurement",
 )  # fmt: skip
-"""The env constructors' own keywords; every other keyword is a :class:`heartpole.Params` field."""
+"""The env constructors' own keywords; every other keyword is a [`heartpole.Params`][heartpole.model.Params] field."""
 
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
@@ -67,7 +67,8 @@ def build_dynamics(
     model_params: dict[str, Any],
     constructor: str = "HeartPole.__init__",
 ) -> Dynamics:
-    """The :class:`Dynamics` for an env's constructor arguments; ``TypeError`` names any unknown keyword."""
+    """The [`Dynamics`][heartpole.dynamics.Dynamics] for an env's constructor arguments; ``TypeError`` names any
+    unknown keyword."""
     accepted = [*CONSTRUCTOR_KEYWORDS, *(set(Params.__dataclass_fields__) - set(CONSTRUCTOR_KEYWORDS))]
     check_keywords(constructor, model_params, accepted)
     params = Params(heart_attack_proclivity=heart_attack_proclivity, max_steps=max_steps, **model_params)
@@ -111,9 +112,10 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     then you work for a half-hour. Coffee makes you alert, beer can put you at the Ballmer peak, sleep
     restores alertness, but every drink raises your blood pressure, and blood pressure raises the risk
     of a heart attack. The dynamics are the tutorial's facts 0-8, written once as
-    :func:`heartpole.model.step` (the actions are data: :mod:`heartpole.actions`) and compiled by
-    :mod:`heartpole.kernel`. :class:`heartpole.HeartPoleVectorEnv` runs the same compiled step: env 0 of a
-    vector env reset with the same seed follows this env bit for bit.
+    [`heartpole.model.step`][heartpole.model.step] (the actions are data: [`heartpole.actions`][heartpole.actions]) and
+    compiled by [`heartpole.kernel`][heartpole.kernel].
+    [`heartpole.HeartPoleVectorEnv`][heartpole.vector.HeartPoleVectorEnv] runs the same compiled step: env 0 of a vector
+    env reset with the same seed follows this env bit for bit.
 
     ## Action Space
     ``Discrete(4)``:
@@ -159,22 +161,22 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     Gymnasium's name for the same number. The registered spec's ``max_episode_steps`` is that number too,
     so ``env.spec.max_episode_steps`` is an integer and ``gymnasium.make`` adds its ``TimeLimit`` wrapper
     with the same limit. Change the length with ``gymnasium.make(id, max_steps=n, max_episode_steps=n)``
-    or a variant (:func:`heartpole.register_variant` with ``max_steps=n``): ``gymnasium.make`` hands its
-    own ``max_episode_steps`` to the ``TimeLimit`` wrapper only, never to the env, and builds that wrapper
-    from the registered spec when it is not given. ``gymnasium.make_vec`` passes it to the vector env,
-    which takes either name. Stepping on after truncation without the wrapper (the env made directly)
-    continues the same day with ``truncated=True`` on every step; through ``gymnasium.make``, Gymnasium's
-    ``OrderEnforcing`` and ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
+    or a variant ([`heartpole.register_variant`][heartpole.registry.register_variant] with ``max_steps=n``):
+    ``gymnasium.make`` hands its own ``max_episode_steps`` to the ``TimeLimit`` wrapper only, never to the env, and
+    builds that wrapper from the registered spec when it is not given. ``gymnasium.make_vec`` passes it to the vector
+    env, which takes either name. Stepping on after truncation without the wrapper (the env made directly) continues the
+    same day with ``truncated=True`` on every step; through ``gymnasium.make``, Gymnasium's ``OrderEnforcing`` and
+    ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
 
     ## Info
     ``action_taken`` (the index of the action taken, an int; ``env.unwrapped.action_names[i]`` is its name),
     ``heart_attack`` (bool), ``heart_attack_risk`` (the probability the coin was flipped with, used by the
     expected-risk estimate), ``productivity`` (this half-hour's work) and ``score`` (``work_done /
     time_elapsed``). ``reset`` returns the same keys with the same types and their values before any step
-    (:data:`heartpole.env.RESET_INFO`): ``action_taken`` -1 (none yet), ``heart_attack`` False and 0.0 for
-    the others, so tools that record infos (Minari's ``DataCollector(record_infos=True)``, TorchRL) see one
-    structure throughout. No key is named like the step's own values (``action``, ``observation``,
-    ``reward``, ...): TorchRL puts the info keys beside those, and an ``info["action"]`` replaced its action.
+    ([`heartpole.env.RESET_INFO`][heartpole.env.RESET_INFO]): ``action_taken`` -1 (none yet), ``heart_attack`` False and
+    0.0 for the others, so tools that record infos (Minari's ``DataCollector(record_infos=True)``, TorchRL) see one
+    structure throughout. No key is named like the step's own values (``action``, ``observation``, ``reward``, ...):
+    TorchRL puts the info keys beside those, and an ``info["action"]`` replaced its action.
 
     ## Rendering
     ``"ansi"`` returns the tutorial's log of the steps since the last render (action names, HEART ATTACK
@@ -206,15 +208,15 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     ## Arguments
     ``gymnasium.make("HeartPole-v0", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)``.
     ``heart_attack_proclivity`` in [0, 1] scales the risk; ``max_steps`` >= 1. Variants (see
-    :func:`heartpole.register_variant`) also pass ``actions``, ``variables`` and other
-    :class:`heartpole.Params` fields such as ``decay_rate`` or ``sleep_half_hours``.
+    [`heartpole.register_variant`][heartpole.registry.register_variant]) also pass ``actions``, ``variables`` and other
+    [`heartpole.Params`][heartpole.model.Params] fields such as ``decay_rate`` or ``sleep_half_hours``.
 
     ## Differences from the tutorial's code (API only, same dynamics)
     * Gymnasium's API: ``reset(seed=...)`` returns ``(obs, info)`` and ``step`` returns
       ``(obs, reward, terminated, truncated, info)``; the step limit is a truncation, not a termination.
     * Randomness comes from ``self.np_random`` (seeded by ``reset(seed=...)``), never from NumPy's
       global state, so runs are reproducible bit for bit: each episode draws one 64-bit key from it, and
-      the step's uniforms are a counter-based hash of that key (:mod:`heartpole.kernel`).
+      the step's uniforms are a counter-based hash of that key ([`heartpole.kernel`][heartpole.kernel]).
     * The step computes in float32 (observations are float32 anyway): an episode's rewards add up to its
       final score minus 100 per heart attack within about 1e-5.
     * Observations are float32 in a float32 ``Box``, so Gymnasium does not warn about precision.
@@ -309,8 +311,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         """Start a new episode: everything at 0, then wake up (fact 1). ``options`` is accepted and unused.
 
         The episode's random numbers are keyed by one 64-bit draw from ``self.np_random``, as env 0 of a
-        :class:`heartpole.HeartPoleVectorEnv` reset with the same seed: the two then agree bit for bit.
-        """
+        [`heartpole.HeartPoleVectorEnv`][heartpole.vector.HeartPoleVectorEnv] reset with the same seed: the two then
+        agree bit for bit."""
         super().reset(seed=seed)
         people_rng, sensor_rng = self._observer.generators(self.np_random)
         envs = np.zeros((len(self.dynamics.variables), 1), dtype=np.float32)

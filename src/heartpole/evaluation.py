@@ -1,7 +1,8 @@
 """Honest evaluation of HeartPole policies: many episodes, 95% intervals, a low-variance estimate, pairs.
 
-:func:`evaluate` runs a policy for ``episodes`` full episodes on the native vector env and returns an
-:class:`EvaluationResult` with two estimates of the expected return, each with a 95% interval:
+[`evaluate`][heartpole.evaluation.evaluate] runs a policy for ``episodes`` full episodes on the native vector env and
+returns an [`EvaluationResult`][heartpole.evaluation.EvaluationResult] with two estimates of the expected return, each
+with a 95% interval:
 
 * the *realized* return, the mean of the episodes' returns. An episode's return telescopes to its final
   score (``work_done / time_elapsed``) minus 100 per heart attack, so its standard deviation is about
@@ -12,11 +13,11 @@
   difference is a martingale) but none of the coin's noise: same expected value, no bias, an interval
   hundreds of times narrower. Policies are ranked by it.
 
-:func:`compare` evaluates two policies with common random numbers. The vector env draws one block of
-uniforms per step with a fixed column per random event (each effect, waking, the heart-attack coin), and
-evaluation splits the episodes into chunks that depend only on ``(episodes, seed, num_envs)``; so episode
-``i`` of policy A meets the same coins as episode ``i`` of policy B, and the interval of the paired
-difference is far tighter than the two separate intervals.
+[`compare`][heartpole.evaluation.compare] evaluates two policies with common random numbers. The vector env draws one
+block of uniforms per step with a fixed column per random event (each effect, waking, the heart-attack coin), and
+evaluation splits the episodes into chunks that depend only on ``(episodes, seed, num_envs)``; so episode ``i`` of
+policy A meets the same coins as episode ``i`` of policy B, and the interval of the paired difference is far tighter
+than the two separate intervals.
 
 Everything random is seeded from ``seed`` through NumPy ``SeedSequence`` s: chunk ``c`` of the episodes
 resets its env with a seed drawn from ``SeedSequence(seed, spawn_key=(0, c))``, and the ``random``
@@ -295,19 +296,20 @@ def evaluate(
     """Run ``policy`` for ``episodes`` full episodes of ``env_id`` and summarise them.
 
     Args:
-        policy: a :data:`~heartpole.policies.Policy` callable, a built-in name or a model ``.zip`` path.
+        policy: a [`Policy`][heartpole.policies.Policy] callable, a built-in name or a model ``.zip`` path.
         env_id: a HeartPole env id; episodes run on its native vector env.
         episodes: how many episodes (>= 1; intervals need >= 2).
         seed: the seed of everything random (>= 0). The same seed gives the same result, and two policies
-            evaluated with the same seed and ``num_envs`` share their random numbers (see :func:`compare`).
+            evaluated with the same seed and ``num_envs`` share their random numbers (see
+            [`compare`][heartpole.evaluation.compare]).
         num_envs: episodes run side by side (default: ``min(episodes, DEFAULT_NUM_ENVS)``).
         env_kwargs: the env's keyword arguments (``max_steps``, ``heart_attack_proclivity``, ...).
         progress: ``True`` for a progress bar on stderr (shown when stderr is a terminal), or a callable
             given the number of env steps done since its last call.
-        regret: add the regret against :mod:`heartpole.optimum`'s optimum where the solver covers the env
-            (solved before the episodes run, once per parameter set, and cached; elsewhere ``nan``, with
-            ``no_regret_reason`` saying why); under a finite cohort of ``people`` the oracle regret instead
-            (each person solved once and cached, see [`people_truth`][heartpole.truth.people_truth]).
+        regret: add the regret against [`heartpole.optimum`][heartpole.optimum]'s optimum where the solver covers the
+            env (solved before the episodes run, once per parameter set, and cached; elsewhere ``nan``, with
+            ``no_regret_reason`` saying why); under a finite cohort of ``people`` the oracle regret instead (each person
+            solved once and cached, see [`people_truth`][heartpole.truth.people_truth]).
 
     Raises:
         ValueError: bad arguments, an unknown policy or env, or a policy returning invalid actions.
@@ -348,7 +350,8 @@ def evaluate(
 
 
 def _optimum(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:
-    """The optimum of the env (:func:`heartpole.optimum.optimum`), or why the solver does not cover it."""
+    """The optimum of the env ([`heartpole.optimum.optimum`][heartpole.optimum.solution.optimum]), or why the solver
+    does not cover it."""
     from heartpole.optimum import NotCoveredError, optimum
 
     if env_kwargs.get("people") is not None:
@@ -360,7 +363,8 @@ def _optimum(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | st
 
 
 class _SharedOptions(TypedDict):
-    """The keyword arguments of :func:`evaluate` that :func:`compare` and :func:`baselines` pass on alike."""
+    """The keyword arguments of [`evaluate`][heartpole.evaluation.evaluate] that
+    [`compare`][heartpole.evaluation.compare] and [`baselines`][heartpole.evaluation.baselines] pass on alike."""
 
     num_envs: int | None
     env_kwargs: Mapping[str, Any] | None
@@ -380,7 +384,7 @@ def compare(
 ) -> Comparison:
     """Evaluate two policies with common random numbers and pair their episodes: ``a - b``.
 
-    Arguments are :func:`evaluate`'s; both policies see the same seed and chunking.
+    Arguments are [`evaluate`][heartpole.evaluation.evaluate]'s; both policies see the same seed and chunking.
 
     >>> pair = compare("expert", "nothing", episodes=20, env_kwargs={"max_steps": 100})
     >>> pair.a.policy, pair.b.policy, pair.expected_difference == pair.a.expected_return - pair.b.expected_return
@@ -406,7 +410,7 @@ def baselines(
 ) -> list[EvaluationResult]:
     """Every built-in policy and each of ``extra``, evaluated alike, best expected-risk return first.
 
-    ``optimal`` is left out where :mod:`heartpole.optimum` does not cover the variant."""
+    ``optimal`` is left out where [`heartpole.optimum`][heartpole.optimum] does not cover the variant."""
     policies: list[PolicyLike] = [*available_builtins(env_id, env_kwargs), *extra]
     options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
     return rank([evaluate(policy, env_id, episodes, seed, **options) for policy in policies])

@@ -1,4 +1,5 @@
-"""HeartPole's ids in Gymnasium's registry, and :func:`register_variant` for users' own variants.
+"""HeartPole's ids in Gymnasium's registry, and [`register_variant`][heartpole.registry.register_variant] for users' own
+variants.
 
 ``import heartpole`` registers ``HeartPole-v0`` (the tutorial's) and ``HeartPole-v1`` (its homework), each
 with a single-env entry point and a native vector entry point. A variant is v0 (or v1) with other actions,
@@ -74,7 +75,7 @@ _MAKE_TIME = {
     "wrappers": "gymnasium.make_vec",
 }
 PARAMETERS: tuple[str, ...] = tuple(f.name for f in fields(Params))
-"""The parameters a variant may set: the fields of :class:`heartpole.Params`."""
+"""The parameters a variant may set: the fields of [`heartpole.Params`][heartpole.model.Params]."""
 
 VARIABLE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Variable))
 
@@ -86,11 +87,10 @@ def register_envs() -> None:
     """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered.
 
     Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
-    (:func:`solved_bar`). Gymnasium reads v1 as v0's successor and so warns, once per calling line, that
-    ``HeartPole-v0`` "is out of date"; v1 is a richer variant, v0 stays the reference benchmark. Gymnasium
-    offers no per-id way to say so, and a package must not change the process's warning filters, so the
-    notice stands (silence it in your own code if you wish; see the README).
-    """
+    ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so warns, once per
+    calling line, that ``HeartPole-v0`` "is out of date"; v1 is a richer variant, v0 stays the reference benchmark.
+    Gymnasium offers no per-id way to say so, and a package must not change the process's warning filters, so the
+    notice stands (silence it in your own code if you wish; see the README)."""
     for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
             define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
@@ -115,22 +115,22 @@ def register_variant(
     Args:
         id: the new id, ``"Name-vN"`` (optionally ``"namespace/Name-vN"``): a name that starts with a
             letter, then ``-v`` and a version number, as Gymnasium spells ids.
-        actions: the action set in action-index order, as :class:`heartpole.Action` objects or mappings of
-            their fields (``{"name": ..., "effects": {...}, "rest_half_hours": ..., "sleeps": ...,
-            "fact": ..., "source": ...}``). Default: v0's four. Start from ``heartpole.V0_ACTIONS`` or
-            ``heartpole.V1_ACTIONS`` to keep their indices.
+        actions: the action set in action-index order, as [`heartpole.Action`][heartpole.actions.Action] objects or
+            mappings of their fields (``{"name": ..., "effects": {...}, "rest_half_hours": ..., "sleeps": ..., "fact":
+            ..., "source": ...}``). Default: v0's four. Start from ``heartpole.V0_ACTIONS`` or ``heartpole.V1_ACTIONS``
+            to keep their indices.
         variables: the state variables in observation order: v0's six exactly
-            (``heartpole.V0_VARIABLES``), then any that the actions need, as :class:`heartpole.Variable`
-            objects or mappings of their fields. Each starts at 0, so 0 must lie within its bounds. Default:
-            v0's six. ``heartpole.V1_VARIABLES`` adds v1's ``thc``.
+            (``heartpole.V0_VARIABLES``), then any that the actions need, as
+            [`heartpole.Variable`][heartpole.model.Variable] objects or mappings of their fields. Each starts at 0, so 0
+            must lie within its bounds. Default: v0's six. ``heartpole.V1_VARIABLES`` adds v1's ``thc``.
         replace: redefine a variant this function registered before (handy when re-running a notebook).
             The built-in ``HeartPole-v0`` and ``HeartPole-v1`` and other packages' ids are never replaced.
-        **params: :class:`heartpole.Params` fields: ``heart_attack_proclivity``, ``max_steps``,
+        **params: [`heartpole.Params`][heartpole.model.Params] fields: ``heart_attack_proclivity``, ``max_steps``,
             ``decay_rate``, ``sleep_half_hours``, ``heart_attack_penalty``, ``wake_alertness``. They become
             the variant's defaults, which ``gymnasium.make(id, ...)`` can still override.
 
     Returns:
-        The registered :class:`gymnasium.envs.registration.EnvSpec`.
+        The registered `gymnasium.envs.registration.EnvSpec`.
 
     Raises:
         ValueError: a malformed or taken id; an action or variable of the wrong type, shape or value, or

@@ -26,7 +26,7 @@ PUBLISHED_TABLE1: tuple[tuple[str, str, float], ...] = (
 )
 """Table 1 of the HEALTHINF abstract on HeartPole: (algorithm, model, mean return over 20 episodes)."""
 PUBLISHED_EPISODES = 20
-"""Episodes per row of :data:`PUBLISHED_TABLE1`."""
+"""Episodes per row of [`PUBLISHED_TABLE1`][heartpole.reporting.PUBLISHED_TABLE1]."""
 
 NO_INTERVAL = "no 95% intervals: fewer than 2 episodes (an interval needs at least 2)"
 
@@ -54,7 +54,7 @@ def under_people(results: Sequence[EvaluationResult]) -> bool:
 def plus_minus(value: float, interval: tuple[float, float]) -> str:
     """``value +- half-width`` with two significant digits in the half-width, e.g. ``-138.785 +- 0.078``;
     the value alone where there is no interval (fewer than two episodes: say so beside it, see
-    :func:`missing_notes`), ``-`` where there is no value."""
+    [`missing_notes`][heartpole.reporting.missing_notes]), ``-`` where there is no value."""
     if not math.isfinite(value):
         return "-"
     half = (interval[1] - interval[0]) / 2

@@ -40,22 +40,22 @@ class EpisodeEndedError(ResetNeeded, AssertionError):
 class HeartPoleVectorEnv(VectorEnv):
     """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
 
-    The same compiled step as :class:`heartpole.HeartPole` (:func:`heartpole.kernel.step_envs`) runs
-    over a ``(num_variables, num_envs)`` float32 state, in place. Each env's random numbers are keyed by
-    one 64-bit draw from ``self.np_random`` at ``reset``, in env order, and counted from there on (through
-    autoresets too): env 0 after ``reset(seed=s)`` follows ``HeartPole().reset(seed=s)`` bit for bit.
-    Keyword arguments are the single env's.
+    The same compiled step as [`heartpole.HeartPole`][heartpole.env.HeartPole]
+    ([`heartpole.kernel.step_envs`][heartpole.kernel.step_envs]) runs over a ``(num_variables, num_envs)`` float32
+    state, in place. Each env's random numbers are keyed by one 64-bit draw from ``self.np_random`` at ``reset``, in env
+    order, and counted from there on (through autoresets too): env 0 after ``reset(seed=s)`` follows
+    ``HeartPole().reset(seed=s)`` bit for bit. Keyword arguments are the single env's.
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
     Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
     variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
 
-    ``info`` holds the single env's keys (:data:`INFO_KEYS`: ``action_taken``, the index of the action taken,
-    ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
-    arrays of ``num_envs`` values (dtypes :data:`INFO_DTYPES`), with Gymnasium's ``_key`` masks. ``step``
-    reports every key for every env (one mask array shared by the keys). ``reset`` gives the same keys with
-    their values before any step (``action_taken`` -1, the others 0 or False, as the single env's
-    ``reset``), for the envs it reset.
+    ``info`` holds the single env's keys ([`INFO_KEYS`][heartpole.vector.INFO_KEYS]: ``action_taken``, the index of the
+    action taken, ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
+    arrays of ``num_envs`` values (dtypes [`INFO_DTYPES`][heartpole.vector.INFO_DTYPES]), with Gymnasium's ``_key``
+    masks. ``step`` reports every key for every env (one mask array shared by the keys). ``reset`` gives the same keys
+    with their values before any step (``action_taken`` -1, the others 0 or False, as the single env's ``reset``), for
+    the envs it reset.
 
     ``reset(options={"reset_mask": mask})`` resets only the envs where ``mask`` (a bool array of shape
     ``(num_envs,)`` with at least one True; else ``TypeError`` or ``ValueError``, as Gymnasium's vector envs
@@ -64,7 +64,7 @@ class HeartPoleVectorEnv(VectorEnv):
     env ``i`` the ``i``-th); ``seed=None`` continues the generator.
 
     Every episode is truncated after ``max_steps`` decisions (never terminated). Autoreset (Gymnasium's
-    ``AutoresetMode``, as ``SyncVectorEnv`` runs it over :class:`heartpole.HeartPole`):
+    ``AutoresetMode``, as ``SyncVectorEnv`` runs it over [`heartpole.HeartPole`][heartpole.env.HeartPole]):
 
     * ``NEXT_STEP`` (default): the call to ``step`` after an env's episode ended starts a new one for that
       env, ignoring its action: its first observation, reward 0, ``truncated=False`` and ``reset``'s info
@@ -75,8 +75,8 @@ class HeartPoleVectorEnv(VectorEnv):
       both masked by ``_final_obs`` and ``_final_info``; the top-level keys hold the new episode's
       ``reset`` values, so the last step is counted once.
     * ``DISABLED``: nothing restarts; reset the ended envs with ``reset(options={"reset_mask": truncated})``.
-      ``step`` before that raises :class:`EpisodeEndedError` (an ``AssertionError``, as ``SyncVectorEnv``'s)
-      and changes nothing.
+      ``step`` before that raises [`EpisodeEndedError`][heartpole.vector.EpisodeEndedError] (an ``AssertionError``, as
+      ``SyncVectorEnv``'s) and changes nothing.
 
     Invalid actions (wrong shape, not integers, out of range) raise ``ValueError`` and change nothing.
 
@@ -337,7 +337,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
 
     def _still_ended(self, kept: np.ndarray) -> np.ndarray | None:
-        """The ended episodes (:attr:`_ended`) among the envs ``kept``, or None if there are none."""
+        """The ended episodes (`_ended`) among the envs ``kept``, or None if there are none."""
         if self._ended is None:
             return None
         ended = self._ended & kept

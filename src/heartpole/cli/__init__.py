@@ -42,7 +42,7 @@ Run 'heartpole COMMAND --help' for each command's options.
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every subcommand found in :mod:`heartpole.cli`."""
+    """The argument parser with every subcommand found in [`heartpole.cli`][heartpole.cli]."""
     parser = argparse.ArgumentParser(
         prog="heartpole", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -57,7 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``heartpole`` command with ``argv`` (default: ``sys.argv[1:]``); return the exit code.
 
     Ended by SIGINT (Ctrl-C), SIGTERM or SIGHUP, a command cleans up what it was writing (see
-    :mod:`heartpole.files`), says so on stderr and returns 128 + the signal's number: 130, 143 or 129.
+    [`heartpole.files`][heartpole.files]), says so on stderr and returns 128 + the signal's number: 130, 143 or 129.
     """
     command = ["heartpole"]
     try:

@@ -1,6 +1,6 @@
 """What every ``heartpole`` subcommand shares: errors, argument types, tables and output checks.
 
-Files are written by :mod:`heartpole.files` (whole or not at all).
+Files are written by [`heartpole.files`][heartpole.files] (whole or not at all).
 """
 
 from __future__ import annotations
@@ -102,8 +102,8 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     """Check, before any work, that the file ``path`` may be written; return it as a ``Path``.
 
     Every command that writes behaves alike: missing folders are created (when written, by
-    :func:`heartpole.files.atomic_files`), an existing file is replaced only with ``--force``, and files and
-    folders get the modes the umask gives.
+    [`heartpole.files.atomic_files`][heartpole.files.atomic_files]), an existing file is replaced only with ``--force``,
+    and files and folders get the modes the umask gives.
 
     Raises:
         CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or no
@@ -126,7 +126,8 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
 
 
 def output_files(folder: str | os.PathLike[str], names: Sequence[str], *, force: bool) -> list[Path]:
-    """:func:`output_file` for each of ``names`` in ``folder`` (created when written if missing)."""
+    """[`output_file`][heartpole.cli.common.output_file] for each of ``names`` in ``folder`` (created when written if
+    missing)."""
     base = Path(folder)
     if base.exists() and not base.is_dir():
         raise CommandError(f"{base} is a file, expected a folder")

@@ -1,6 +1,6 @@
 """``heartpole evaluate``, ``heartpole compare`` and ``heartpole baselines``: honest numbers for policies.
 
-The work is done by :mod:`heartpole.evaluation`; these commands parse, call it and print.
+The work is done by [`heartpole.evaluation`][heartpole.evaluation]; these commands parse, call it and print.
 """
 
 from __future__ import annotations
@@ -187,7 +187,7 @@ def run_baselines(args: argparse.Namespace) -> int:
 
 
 def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
-    """``spec`` checked before any episode runs: a built-in's name (:func:`~heartpole.evaluation.evaluate`
+    """``spec`` checked before any episode runs: a built-in's name ([`evaluate`][heartpole.evaluation.evaluate]
     builds it with the run's seed), or the loaded model (the user hears which statistics it applies)."""
     from heartpole.policies import BUILTIN_POLICIES, load_policy
 
@@ -199,7 +199,7 @@ def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
 
 
 def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> EvaluationResult:
-    """Evaluate ``policy`` (from :func:`_policy`) with the run options of ``args``, a progress bar on stderr
+    """Evaluate ``policy`` (from `_policy`) with the run options of ``args``, a progress bar on stderr
     named ``spec``, errors as one line."""
     from heartpole.evaluation import evaluate
     from heartpole.registry import env_dynamics
@@ -220,7 +220,8 @@ def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> Evalua
 
 
 def _library(call: Callable[[], T]) -> T:
-    """Run ``call``; turn the errors a user can cause into :class:`CommandError` s (one line, exit 2)."""
+    """Run ``call``; turn the errors a user can cause into [`CommandError`][heartpole.cli.common.CommandError] s (one
+    line, exit 2)."""
     try:
         return call()
     except (ValueError, OSError) as error:

@@ -1,6 +1,6 @@
 """``heartpole dataset`` and ``heartpole ope``: Minari datasets and off-policy evaluation against the truth.
 
-The work is done by :mod:`heartpole.offline`; these commands parse, call it and print.
+The work is done by [`heartpole.offline`][heartpole.offline]; these commands parse, call it and print.
 """
 
 from __future__ import annotations
@@ -204,7 +204,8 @@ def _max_steps(env_id: str) -> int:
 
 
 def _library(call: Callable[[], T]) -> T:
-    """Run ``call``; turn the errors a user can cause into :class:`CommandError` s (one line, exit 2)."""
+    """Run ``call``; turn the errors a user can cause into [`CommandError`][heartpole.cli.common.CommandError] s (one
+    line, exit 2)."""
     try:
         return call()
     except (ValueError, OSError) as error:

@@ -3,7 +3,7 @@
 The state is printed every half-hour; one key chooses the next action (no Enter needed when stdin is a
 terminal; piped keys work too). ``q`` (or Ctrl-D) ends the game early with the summary; Ctrl-C ends it
 at once. The summary sets the player's return, score and heart attacks beside the built-in policies'
-over episodes of the same length and seed. The game itself is :mod:`heartpole.game`; this module parses,
+over episodes of the same length and seed. The game itself is [`heartpole.game`][heartpole.game]; this module parses,
 calls it and prints.
 """
 

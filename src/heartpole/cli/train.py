@@ -138,7 +138,8 @@ def whole_number(name: str, text: None, minimum: int) -> None: ...
 @overload
 def whole_number(name: str, text: str | None, minimum: int) -> int | None: ...
 def whole_number(name: str, text: str | None, minimum: int) -> int | None:
-    """``text`` as an integer >= ``minimum`` (``None`` stays ``None``); else a one-line :class:`CommandError`."""
+    """``text`` as an integer >= ``minimum`` (``None`` stays ``None``); else a one-line
+    [`CommandError`][heartpole.cli.common.CommandError]."""
     if text is None:
         return None
     try:
@@ -154,7 +155,7 @@ def parse_seeds(text: str) -> list[int]:
     """Seeds from ``"0-4"``, ``"0,3,7"`` or a mix (``"0-2,9"``): distinct whole numbers >= 0, in order given.
 
     Raises:
-        CommandError: anything else, repeated seeds, or more than :data:`MAX_SEEDS` seeds.
+        CommandError: anything else, repeated seeds, or more than [`MAX_SEEDS`][heartpole.cli.train.MAX_SEEDS] seeds.
     """
     seeds: list[int] = []
     for part in text.split(","):
@@ -176,7 +177,8 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def build_config(args: argparse.Namespace) -> TrainConfig:
-    """The :class:`heartpole.training.TrainConfig` of the parsed arguments; bad values raise CommandError."""
+    """The [`heartpole.training.TrainConfig`][heartpole.training.presets.TrainConfig] of the parsed arguments; bad
+    values raise CommandError."""
     from dataclasses import replace
 
     from heartpole.training import BACKENDS, load_preset, preset_config

@@ -1,4 +1,5 @@
-"""``heartpole tune``: a hyperparameter search with Optuna on Ray Tune (the work is :mod:`heartpole.scale`'s).
+"""``heartpole tune``: a hyperparameter search with Optuna on Ray Tune (the work is
+[`heartpole.scale`][heartpole.scale]'s).
 
 This module parses, checks and prints; Ray is imported only when the command runs.
 """
@@ -84,7 +85,8 @@ def register(subparsers: Subparsers) -> None:
 
 
 def build_settings(args: argparse.Namespace) -> SearchSettings:
-    """The :class:`heartpole.scale.SearchSettings` of the arguments; bad values raise CommandError."""
+    """The [`heartpole.scale.SearchSettings`][heartpole.scale.search.SearchSettings] of the arguments; bad values
+    raise CommandError."""
     from heartpole.scale import SearchSettings
     from heartpole.training import preset_config
 

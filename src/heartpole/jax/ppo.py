@@ -4,9 +4,11 @@ It is Stable-Baselines3's PPO as ``heartpole train`` configures it, step for ste
 critic MLPs with tanh (SB3's ``MlpPolicy``, orthogonal initialisation), Adam (eps 1e-5) with the
 gradient's global norm clipped, GAE, per-minibatch advantage normalisation, the clipped surrogate, an
 entropy bonus; VecNormalize's running observation and discounted-return statistics (the latter capped at
-``reward_stats_window`` samples, as :class:`heartpole.training.RewardStatsWindow`); the training reward
-of :class:`heartpole.training.TrainingReward`; and bootstrapping through the time limit from the value of
-the episode's last observation (``info["final_observation"]``), as SB3 does for ``TimeLimit.truncated``.
+``reward_stats_window`` samples, as
+[`heartpole.training.RewardStatsWindow`][heartpole.training.callbacks.RewardStatsWindow]); the training reward of
+[`heartpole.training.TrainingReward`][heartpole.training.reward.TrainingReward]; and bootstrapping through the time
+limit from the value of the episode's last observation (``info["final_observation"]``), as SB3 does for
+``TimeLimit.truncated``.
 
 `train_compiled` trains several seeds in one compiled call;
 `heartpole.jax.export` saves them as ``heartpole train`` saves SB3's runs, evaluates
@@ -71,7 +73,8 @@ def enable_compilation_cache(folder: str | os.PathLike[str] | None = None) -> Pa
 
 @dataclass(frozen=True)
 class PPOSettings:
-    """The numbers of one PPO run (a :class:`heartpole.training.TrainConfig` with ``algo="ppo"`` gives them)."""
+    """The numbers of one PPO run (a [`heartpole.training.TrainConfig`][heartpole.training.presets.TrainConfig] with
+    ``algo="ppo"`` gives them)."""
 
     timesteps: int = 400_000
     n_envs: int = 16
@@ -98,7 +101,8 @@ class PPOSettings:
 
     @classmethod
     def from_config(cls, config: Any) -> PPOSettings:
-        """The settings of a :class:`heartpole.training.TrainConfig` (PPO only; SB3's defaults fill gaps).
+        """The settings of a [`heartpole.training.TrainConfig`][heartpole.training.presets.TrainConfig] (PPO only; SB3's
+        defaults fill gaps).
 
         Raises:
             ValueError: another algorithm, ``score_rate="auto"``, or hyperparameters this PPO does not have.
@@ -268,7 +272,7 @@ def make_parts(
     env: HeartPoleJax, params: EnvParams, s: PPOSettings, updates: int
 ) -> tuple[Callable[[jax.Array], Runner], Callable[[Runner], tuple[Runner, Any]]]:
     """``start(key) -> runner`` and ``run(runner) -> (runner, metrics)`` doing ``updates`` updates: a run
-    in pieces, so that the host can show progress between them (see :func:`make_train`)."""
+    in pieces, so that the host can show progress between them (see [`make_train`][heartpole.jax.ppo.make_train])."""
     n_envs, obs_dim = s.n_envs, env.observation_space(params).shape[0]  # the traits too with observe_traits
     penalty = params.heart_attack_penalty
     floor = np.float32(risk_floor(float(params.heart_attack_proclivity)))
@@ -395,8 +399,8 @@ def make_parts(
 
 def learning_rate_at(s: PPOSettings, update: jax.Array) -> jax.Array | float:
     """The learning rate of update ``update`` (0, 1, ...): constant, or with ``anneal_learning_rate`` SB3's
-    linear schedule (:class:`heartpole.training.runs.LinearSchedule`), given the share of the run left once
-    that update's rollout is collected."""
+    linear schedule ([`heartpole.training.runs.LinearSchedule`][heartpole.records.LinearSchedule]), given the share
+    of the run left once that update's rollout is collected."""
     if not s.anneal_learning_rate:
         return s.learning_rate
     collected = (update + 1).astype(jnp.float32) * s.rollout
@@ -409,7 +413,7 @@ def chunk_size(updates: int, pieces: int = 20) -> int:
 
 
 def learning_curve(ended: Any, settings: PPOSettings) -> list[dict[str, float]]:
-    """One seed's learning-curve rows (the columns of :data:`heartpole.training.CURVE_COLUMNS`): at each
+    """One seed's learning-curve rows (the columns of `heartpole.training.CURVE_COLUMNS`): at each
     env step where episodes ended, their mean true return, heart attacks and final score."""
     done, returns, attacks, scores = (np.asarray(x).reshape(-1, settings.n_envs) for x in ended)
     rows = []

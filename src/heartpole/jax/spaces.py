@@ -1,4 +1,5 @@
-"""The two spaces HeartPole needs, with gymnax's interface: :class:`Discrete` and :class:`Box`.
+"""The two spaces HeartPole needs, with gymnax's interface: [`Discrete`][heartpole.jax.spaces.Discrete] and
+[`Box`][heartpole.jax.spaces.Box].
 
 gymnax's wrappers and PureJaxRL-style code read ``n``, ``shape``, ``dtype``, ``low`` / ``high`` and call
 ``sample(key)`` and ``contains(x)``; these classes provide exactly that, so HeartPole's JAX env needs no

@@ -3,10 +3,12 @@
 Install with ``pip install heartpole[offline]`` (Minari). ``import heartpole.offline`` needs only NumPy:
 Minari is imported when a dataset is written or read, PyTorch when a learner trains.
 
-* :mod:`heartpole.offline.datasets`: record (``record_dataset``, ``record_standard``) and load datasets.
-* :func:`true_value`: a policy's true value, discounted and undiscounted, with 95% intervals.
-* :mod:`heartpole.offline.ope`: PDIS, WPDIS, FQE and DR (``estimate_all``, ``evaluate_off_policy``).
-* :mod:`heartpole.offline.learners`: behaviour cloning and discrete CQL.
+* [`heartpole.offline.datasets`][heartpole.offline.datasets]: record (``record_dataset``, ``record_standard``) and load
+  datasets.
+* [`true_value`][heartpole.offline.truth.true_value]: a policy's true value, discounted and undiscounted, with 95%
+  intervals.
+* [`heartpole.offline.ope`][heartpole.offline.ope]: PDIS, WPDIS, FQE and DR (``estimate_all``, ``evaluate_off_policy``).
+* [`heartpole.offline.learners`][heartpole.offline.learners]: behaviour cloning and discrete CQL.
 """
 
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, action_probabilities

@@ -2,17 +2,18 @@
 
 What is solved. An episode's return telescopes to ``final score - penalty x heart attacks``, with the score
 ``work_done / time_elapsed`` (fact 0's bookkeeping). The solver finds the policy that maximises the
-expected return of HeartPole-v0, with any of its :class:`~heartpole.model.Params` changed, in two steps:
+expected return of HeartPole-v0, with any of its [`Params`][heartpole.model.Params] changed, in two steps:
 
 1. **Drinks never pay** (while ``heart_attack_proclivity * heart_attack_penalty > 0`` and the check below
    passes). A step's heart-attack risk ``r(H) = proclivity * sigmoid(H - 6)`` is convex for ``H <= 6`` and
    hypertension never exceeds ``0.3 * decay / (1 - decay)`` (9.7 for v0), so ``r(H) >= r(0) + r'(0) H``
    on every reachable state. A drink adds ``h ~ U(0, 0.3)`` of hypertension, of which ``decay * h`` is still
    there when its own step's coin is flipped: each drink costs at least
-   ``penalty * r'(0) * decay * 0.15`` = 0.0179 expected return on v0 (:func:`drink_floor`), whatever the
-   policy does. :func:`check_no_drinks` then bounds what a drink can buy (in the ratio-of-expectations
-   sense of step 2, where a unit of return is worth at least ``max_steps`` units of work) and refuses
-   parameters where the bound does not rule drinks out.
+   ``penalty * r'(0) * decay * 0.15`` = 0.0179 expected return on v0
+   ([`drink_floor`][heartpole.optimum.drinks.drink_floor]), whatever the policy does.
+   [`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] then bounds what a drink can buy (in the
+   ratio-of-expectations sense of step 2, where a unit of return is worth at least ``max_steps`` units of work) and
+   refuses parameters where the bound does not rule drinks out.
 2. **Only the sleep timing is left.** Without drinks hypertension stays 0, the heart-attack part is
    fixed (``max_steps * r(0)`` expected attacks) and a day is deterministic once its waking alertness
    ``w ~ U(wake_alertness)`` is drawn: at ``t`` half-hours after waking the alertness is
@@ -38,18 +39,19 @@ through the forward pass (see docs/optimum.md for measurements).
 What it does not cover, refused with a clear error: action sets other than v0's four (HeartPole-v1's
 naps, tea, exercise and cannabis), extra state variables, ``heart_attack_proclivity = 0`` or
 ``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where
-:func:`check_no_drinks` cannot rule drinks out. The solved policy sees ``(n, alertness, t)``, not the work
-and sleeps so far; an exact ``E[work / time]`` optimum would also condition on those, which the issue's
-independent solver measured to be worth about 1e-5 of return.
+[`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] cannot rule drinks out. The solved policy sees ``(n,
+alertness, t)``, not the work and sleeps so far; an exact ``E[work / time]`` optimum would also condition on those,
+which the issue's independent solver measured to be worth about 1e-5 of return.
 
-Also here: :func:`sleep_rule_value`, the exact expected return of any no-drink sleep rule (``expert``'s
-regret without sampling), and :func:`solve_drinking`, a grid DP for ``heart_attack_proclivity=0``, where
+Also here: [`sleep_rule_value`][heartpole.optimum.sleep.sleep_rule_value], the exact expected return of any no-drink
+sleep rule (``expert``'s regret without sampling), and [`solve_drinking`][heartpole.optimum.drinking.solve_drinking], a
+grid DP for ``heart_attack_proclivity=0``, where
 drinking pays: its stationary policy is a lower bound and its whole-episode value an upper bound on the grid,
 not a certified optimum.
 
-Layout: :mod:`.solution` (the solution, the entry points, the cache), :mod:`.sleep` (the sleep-timing
-program), :mod:`.days` (the days of a policy and the exact expected score), :mod:`.drinks` (why drinks
-never pay), :mod:`.drinking` (proclivity 0), :mod:`.common` (what they share).
+Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
+program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
+never pay), `.drinking` (proclivity 0), `.common` (what they share).
 """
 
 from __future__ import annotations

@@ -181,18 +181,19 @@ class ExpertPolicy:
 
 
 class OptimalPolicy:
-    """``optimal``: the policy of :mod:`heartpole.optimum`'s dynamic program. Never drink; sleep when alertness
-    falls below a threshold that depends on the half-hours awake and the decisions left.
+    """``optimal``: the policy of [`heartpole.optimum`][heartpole.optimum]'s dynamic program. Never drink; sleep when
+    alertness falls below a threshold that depends on the half-hours awake and the decisions left.
 
     Far from the end it sleeps near the alertness where ``expert`` does; in the last days it re-times the
     days so that the last one ends with the episode, and over the last few decisions it stays awake. It
     needs the number of decisions left (``needs_decisions_left``): call it as ``policy(obs, decisions_left)``.
-    The solution is solved once per parameter set and cached (:func:`heartpole.optimum.optimum`).
+    The solution is solved once per parameter set and cached
+    ([`heartpole.optimum.optimum`][heartpole.optimum.solution.optimum]).
 
     Args:
         dynamics: the env's dynamics (default: v0's); must be v0's actions and variables.
-        solution: a solved :class:`~heartpole.optimum.OptimumSolution` to act on (default: solve or load
-            the cached one for ``dynamics``).
+        solution: a solved [`OptimumSolution`][heartpole.optimum.solution.OptimumSolution] to act on (default: solve or
+            load the cached one for ``dynamics``).
 
     Raises:
         heartpole.optimum.NotCoveredError: a variant the solver does not cover.
@@ -230,7 +231,7 @@ BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
     "optimal": OptimalPolicy,
     "oracle": OraclePolicy,
 }
-"""The built-in policies by name; each entry builds the policy for a :class:`~heartpole.dynamics.Dynamics`."""
+"""The built-in policies by name; each entry builds the policy for a [`Dynamics`][heartpole.dynamics.Dynamics]."""
 
 
 def available_builtins(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> list[str]:

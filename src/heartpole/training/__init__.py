@@ -6,19 +6,21 @@ PyTorch); ``import heartpole`` never imports it. Its parts, each a module of its
 records every training backend shares ([`heartpole.records`][heartpole.records]: the files, the evaluation
 of the saved model, the summaries):
 
-* :class:`HeartPoleSB3VecEnv` puts HeartPole's native vector env behind SB3's ``VecEnv`` interface, so
-  PPO, A2C and DQN step all envs with one array operation. Episodes end by truncation only, reported as
-  ``TimeLimit.truncated=True`` with the last observation in ``info["terminal_observation"]``, so SB3
-  bootstraps through the time limit; each ended episode's ``info["episode"]`` holds its true return
-  (``"r"``), length (``"l"``), heart attacks and final score, read by SB3's logger like ``Monitor``'s.
-* :class:`TrainingReward` is the reward the agent learns from: the env's own reward, or the
-  *shaped* reward of the default preset (see below). Evaluation always uses the env's true return.
-* :class:`TrainConfig` and :data:`PRESETS`: the ``default`` preset (PPO that solves HeartPole-v0) and the
-  ``tutorial`` preset (the tutorial's DQN with ``net_arch=[16, 16]`` and SB3's default hyperparameters).
-* :func:`train_run` trains one seed and writes ``model.zip``, ``vecnormalize.pkl`` (when observations are
-  normalised), ``heartpole.json``, ``learning_curve.csv`` and ``evaluation.json`` (2,000 episodes of
-  :func:`heartpole.evaluation.evaluate` on the saved files); :func:`train_seeds` trains several seeds and
-  summarises them with the interquartile mean and a bootstrap interval (rliable's recommendation).
+* [`HeartPoleSB3VecEnv`][heartpole.training.adapter.HeartPoleSB3VecEnv] puts HeartPole's native vector env behind SB3's
+  ``VecEnv`` interface, so PPO, A2C and DQN step all envs with one array operation. Episodes end by truncation only,
+  reported as ``TimeLimit.truncated=True`` with the last observation in ``info["terminal_observation"]``, so SB3
+  bootstraps through the time limit; each ended episode's ``info["episode"]`` holds its true return (``"r"``), length
+  (``"l"``), heart attacks and final score, read by SB3's logger like ``Monitor``'s.
+* [`TrainingReward`][heartpole.training.reward.TrainingReward] is the reward the agent learns from: the env's own
+  reward, or the *shaped* reward of the default preset (see below). Evaluation always uses the env's true return.
+* [`TrainConfig`][heartpole.training.presets.TrainConfig] and [`PRESETS`][heartpole.training.presets.PRESETS]: the
+  ``default`` preset (PPO that solves HeartPole-v0) and the ``tutorial`` preset (the tutorial's DQN with ``net_arch=[16,
+  16]`` and SB3's default hyperparameters).
+* [`train_run`][heartpole.training.runs.train_run] trains one seed and writes ``model.zip``, ``vecnormalize.pkl`` (when
+  observations are normalised), ``heartpole.json``, ``learning_curve.csv`` and ``evaluation.json`` (2,000 episodes of
+  [`heartpole.evaluation.evaluate`][heartpole.evaluation.evaluate] on the saved files);
+  [`train_seeds`][heartpole.training.runs.train_seeds] trains several seeds and summarises them with the interquartile
+  mean and a bootstrap interval (rliable's recommendation).
 
 Picking a backend (Stable-Baselines3 here, Ray Tune trials, or PPO compiled in JAX) is not this package's
 work but the launcher's, one layer up: [`heartpole.launch.train`][heartpole.launch.train] is what

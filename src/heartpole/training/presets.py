@@ -152,10 +152,12 @@ DEFAULT_HYPERPARAMETERS: Mapping[str, Mapping[str, Any]] = {
 """Each algorithm's hyperparameters when no preset gives them (the comments say why each was chosen)."""
 
 PRESETS = ("default", "tutorial")
+"""The presets `heartpole train --preset` offers ([`PRESET_HELP`][heartpole.training.presets.PRESET_HELP])."""
 PRESET_HELP = {
     "default": "the settings that solve HeartPole-v0: shaped reward, VecNormalize, 16 envs, tuned PPO",
     "tutorial": "the tutorial's setup: SB3 defaults, net_arch [16, 16], the env's own reward, one env",
 }
+"""What each preset is, for `heartpole train --help`."""
 DEFAULT_ALGO = {"default": "ppo", "tutorial": "dqn"}
 DEFAULT_TIMESTEPS = {"default": 400_000, "tutorial": 500_000}
 Backend: TypeAlias = Literal["sb3", "jax"]
