@@ -38,6 +38,7 @@ def run_vector(env: HeartPoleVectorEnv, steps: int, seed: int = 0) -> list[tuple
     return out
 
 
+@pytest.mark.slow  # each population compiles its own loop: seconds each
 @pytest.mark.parametrize("people", POPULATIONS)
 def test_seeds_reproduce_and_differ(people: People | str) -> None:
     a = run_vector(HeartPoleVectorEnv(8, people=people, max_steps=30), 70, seed=4)
@@ -236,6 +237,7 @@ print(many.tobytes().hex(), rewards.tobytes().hex())
 """
 
 
+@pytest.mark.slow  # runs the loops as plain Python in a subprocess
 def test_people_run_the_same_without_numba_compiling() -> None:
     """With NUMBA_DISABLE_JIT=1 the people's loops run as plain Python to the same observations, bit for bit."""
 

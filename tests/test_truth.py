@@ -102,6 +102,7 @@ def test_under_people_one_optimum_is_no_ones_and_json_has_the_oracle_keys(expert
     assert plain["regret"] is not None and plain["no_oracle_regret_reason"] is None
 
 
+@pytest.mark.slow  # compiles the distribution's own loop
 def test_a_distribution_of_people_says_why_there_is_no_oracle_regret() -> None:
     result = evaluate("expert", episodes=20, env_kwargs={"people": People(decay_rate=Uniform(0.93, 0.97))})
     assert math.isnan(result.oracle_regret) and "distribution" in (result.no_oracle_regret_reason or "")
