@@ -18,6 +18,8 @@ from heartpole.jax import EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
 from heartpole.model import ALERTNESS, HYPERTENSION, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT, Params  # noqa: E402
 from heartpole.people import People, Person, Sample, Uniform  # noqa: E402
 
+pytestmark = pytest.mark.slow  # people: a cohort solved, their loop compiled (minutes in all)
+
 SLEEP = 3  # v0's sleep action
 TOLERANCE_SE = 4.5
 """Means compared across backends may differ by this many standard errors of their difference (a false

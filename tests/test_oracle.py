@@ -19,6 +19,8 @@ from heartpole.policies import (
 )
 from tests.people_cohorts import TRIO
 
+pytestmark = pytest.mark.slow  # a cohort of people solved and their loop compiled: minutes in all
+
 
 @pytest.fixture(scope="module")
 def trio() -> PeopleOptimum:

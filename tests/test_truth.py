@@ -22,6 +22,8 @@ from heartpole.people import People, Uniform
 from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 from tests.people_cohorts import TRIO
 
+pytestmark = pytest.mark.slow  # a cohort of people solved and their loop compiled: minutes in all
+
 EPISODES = 2000
 
 
