@@ -266,3 +266,34 @@ def test_a_signal_that_lands_where_python_ignores_exceptions_is_not_lost() -> No
             time.sleep(0.001)
         pytest.fail("the signal was lost in __del__")
     assert raised.value.signum == signal.SIGTERM and files.exit_code() == 143
+
+
+def test_a_library_error_raised_on_the_way_out_of_a_signal_still_exits_with_the_signal(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A library whose cleanup fails as the Interrupted passes (torch's zip writer, cut mid-write, raises
+    RuntimeError in its ``__exit__``) replaces the Interrupted: the command still exits with 128 + the signal."""
+    import heartpole.cli as cli
+
+    def cut_mid_write(argv: object, command: list[str]) -> int:
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        finally:
+            raise RuntimeError("unexpected pos 82990 vs 82960")  # noqa: B012 - what the library does
+        return 0
+
+    monkeypatch.setattr(cli, "_run", cut_mid_write)
+    assert cli.main([]) == 128 + signal.SIGTERM
+    assert "interrupted by SIGTERM" in capsys.readouterr().err
+
+
+def test_a_library_error_without_a_signal_is_not_taken_for_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    import heartpole.cli as cli
+
+    def fails(argv: object, command: list[str]) -> int:
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(cli, "_run", fails)
+    with pytest.raises(RuntimeError, match="a bug"):
+        cli.main([])

@@ -67,6 +67,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             except KeyboardInterrupt:  # files.Interrupted, or a KeyboardInterrupt a library raised
                 _say_interrupted(command)
                 return files.exit_code()
+            except Exception:
+                if files.received_signal() is None:
+                    raise
+                # A library's cleanup failed on the way out of the signal and replaced the Interrupted
+                # (torch's zip writer raises RuntimeError when its write was cut short): still a signal.
+                _say_interrupted(command)
+                return files.exit_code()
     except KeyboardInterrupt:  # another signal while saying so, or while the handlers were put back
         return files.exit_code()
 
