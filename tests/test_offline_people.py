@@ -130,6 +130,8 @@ def test_ope_reports_the_truth_over_the_datasets_people(monkeypatch) -> None:  #
     assert out["people"] == TRIO.to_dict() and out["oracle_regret"] == report.oracle["oracle_regret"]
     assert out["no_oracle_regret_reason"] is None
     json.dumps(out, allow_nan=False)
+    with pytest.raises(ValueError, match="'oracle' needs each episode's person"):
+        evaluate_off_policy("heartpole/v0/trio-v0", "oracle", truth_episodes=10)
 
 
 def test_ope_under_a_distribution_says_why_there_is_no_oracle_regret() -> None:
