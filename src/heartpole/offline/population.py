@@ -89,8 +89,13 @@ def people_truth_fields(
     regret over ``episodes`` episodes (undiscounted, HeartPole's return, as
     [`evaluate`][heartpole.evaluation.evaluate] reports it) with its interval; for a distribution, why there
     is none; nothing without people."""
-    if not env_kwargs.get("people"):
+    people = env_kwargs.get("people")
+    if people is None:
         return {}
+    if not People.resolve(people).finite:  # type: ignore[union-attr]
+        from heartpole.truth import people_truth
+
+        return {"no_oracle_regret_reason": people_truth(env_id, env_kwargs)}  # a sentence: no episodes to run
     from heartpole.evaluation import evaluate
 
     result = evaluate(policy, env_id, episodes, seed, env_kwargs=env_kwargs)
