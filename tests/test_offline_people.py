@@ -26,6 +26,8 @@ from heartpole.people import People, Uniform  # noqa: E402
 from heartpole.rollout import vector_env  # noqa: E402
 from tests.people_cohorts import TRIO  # noqa: E402
 
+pytestmark = pytest.mark.slow  # datasets over people compile the people's loop and solve a cohort: minutes
+
 EPISODES = 12
 STEPS = 1000
 

@@ -26,6 +26,8 @@ from heartpole.policies import load_policy  # noqa: E402
 from heartpole.training import TrainConfig, preset_config  # noqa: E402
 from tests.people_cohorts import TRIO  # noqa: E402
 
+pytestmark = pytest.mark.slow  # training under people solves a cohort and compiles the people's loop: minutes
+
 V0_WIDTH = 6
 
 
