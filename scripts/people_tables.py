@@ -83,21 +83,12 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.filterwarnings("ignore", ".*HeartPole-v0 is out of date", DeprecationWarning)  # this script's own
     sys.path.insert(0, str(ROOT / "scripts"))
-    from readme_tables import with_tables
+    from readme_tables import with_tables, write_or_check
 
     tables = generate()
     outputs = {TABLES / f"{name}.md": table for name, table in tables.items()}
     outputs[PAGE] = with_tables(PAGE.read_text(), tables)
-    stale = [path for path, text in outputs.items() if not path.is_file() or path.read_text() != text]
-    if args.check:
-        for path in stale:
-            print(f"out of date: {path.relative_to(ROOT)} (run python scripts/people_tables.py)", file=sys.stderr)
-        return 1 if stale else 0
-    TABLES.mkdir(parents=True, exist_ok=True)
-    for path in stale:
-        path.write_text(outputs[path])
-        print(f"wrote {path.relative_to(ROOT)}")
-    return 0
+    return write_or_check(outputs, check=args.check, script="scripts/people_tables.py")
 
 
 if __name__ == "__main__":

@@ -159,10 +159,16 @@ def main(argv: list[str] | None = None) -> int:
     outputs = {TABLES / f"{name}.md": table for name, table in tables.items()}
     for page in marked_pages():
         outputs[page] = with_tables(page.read_text(), tables)
+    return write_or_check(outputs, check=args.check, script="scripts/readme_tables.py")
+
+
+def write_or_check(outputs: dict[Path, str], *, check: bool, script: str) -> int:
+    """Write the generated files that differ from ``outputs`` (or, with ``check``, name them and return 1):
+    every table script's last step."""
     stale = [path for path, text in outputs.items() if not path.is_file() or path.read_text() != text]
-    if args.check:
+    if check:
         for path in stale:
-            print(f"out of date: {path.relative_to(ROOT)} (run python scripts/readme_tables.py)", file=sys.stderr)
+            print(f"out of date: {path.relative_to(ROOT)} (run python {script})", file=sys.stderr)
         return 1 if stale else 0
     TABLES.mkdir(parents=True, exist_ok=True)
     for path in stale:

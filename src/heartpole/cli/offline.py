@@ -12,7 +12,15 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    add_people_arguments,
+    format_table,
+    positive_int,
+    raise_arg,
+    seed_int,
+)
 from heartpole.progress import progress
 
 if TYPE_CHECKING:
@@ -69,15 +77,7 @@ def _register_dataset(subparsers: Subparsers) -> None:
     parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
     parser.add_argument("--id", dest="dataset_id", metavar="ID", help="dataset id (default: from policy and epsilon)")
     parser.add_argument("--force", action="store_true", help="replace an existing dataset of the same id")
-    parser.add_argument(
-        "--people",
-        default=None,
-        metavar="NAME",
-        help="a population of people, one drawn per episode and recorded with it (named: default)",
-    )
-    parser.add_argument(
-        "--observe-traits", action="store_true", help="append each person's traits to the observation (--people)"
-    )
+    add_people_arguments(parser, "each episode's person is recorded with it")
     parser.set_defaults(handler=run_dataset)
 
 

@@ -19,7 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
+from heartpole.cli.common import CommandError, Subparsers, add_people_arguments, format_table, one_line_error
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -119,15 +119,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
-    parser.add_argument(
-        "--people",
-        metavar="NAME",
-        help="train over a population of people, one drawn per episode (named: default); the evaluation "
-        "reports the oracle regret",
-    )
-    parser.add_argument(
-        "--observe-traits", action="store_true", help="append each person's traits to the observation (--people)"
-    )
+    add_people_arguments(parser, "the evaluation reports the oracle regret")
     parser.add_argument(
         "--backend",
         default="sb3",
