@@ -62,7 +62,9 @@ class Observer:
             assert self.people is not None  # checked in __init__
             trait_low, trait_high = self.people.trait_bounds()
             low, high = np.concatenate([low, trait_low]), np.concatenate([high, trait_high])
-        return spaces.Box(np.maximum(low, -LARGEST), np.minimum(high, LARGEST), dtype=np.float32)
+        low = np.maximum(low, -LARGEST).astype(np.float32)  # float32 bounds: no precision warning, whatever
+        high = np.minimum(high, LARGEST).astype(np.float32)  # NumPy's promotion rules (1.x promotes to float64)
+        return spaces.Box(low, high, dtype=np.float32)
 
     def generators(self, rng: np.random.Generator) -> tuple[np.random.Generator | None, np.random.Generator | None]:
         """The people's and the measurement's generators of a ``reset``: children spawned from the seed sequence
