@@ -141,6 +141,20 @@ def _nearest_existing(folder: Path) -> Path:
     return folder
 
 
+def add_people_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--people NAME`` and ``--observe-traits``, the same on every command that runs episodes; ``what`` says
+    what the command does with the people."""
+    parser.add_argument(
+        "--people",
+        default=None,
+        metavar="NAME",
+        help=f"a population of people, one drawn per episode (named: default); {what}",
+    )
+    parser.add_argument(
+        "--observe-traits", action="store_true", help="append each person's traits to the observation (--people)"
+    )
+
+
 def one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
     """A subcommand's argument errors as one line on stderr and exit code 2, without argparse's usage block.
     Install with ``parser.error = types.MethodType(one_line_error, parser)``."""

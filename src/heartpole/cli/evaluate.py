@@ -20,6 +20,7 @@ from heartpole import files
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
+    add_people_arguments,
     format_table,
     markdown_table,
     output_files,
@@ -109,15 +110,7 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="episodes run side by side (default: all of them, up to 10000)",
     )
-    parser.add_argument(
-        "--people",
-        default=None,
-        metavar="NAME",
-        help="a population of people, one drawn per episode (named: default); reports the oracle regret",
-    )
-    parser.add_argument(
-        "--observe-traits", action="store_true", help="append each person's traits to the observation (--people)"
-    )
+    add_people_arguments(parser, "reports the oracle regret")
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:

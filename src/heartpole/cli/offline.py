@@ -12,13 +12,22 @@ from collections.abc import Callable
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, raise_arg, seed_int
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    add_people_arguments,
+    format_table,
+    positive_int,
+    raise_arg,
+    seed_int,
+)
 from heartpole.progress import progress
 
 if TYPE_CHECKING:
     from heartpole.offline.ope import OPEReport
 
 ORDER = 40
+WITH_PEOPLE = " with the dataset's people"
 T = TypeVar("T")
 
 POLICY_HELP = (
@@ -54,7 +63,8 @@ def _register_dataset(subparsers: Subparsers) -> None:
         epilog="examples:\n"
         "  heartpole dataset --policy reference --epsilon 0.2       # heartpole/v0/reference-eps20-v0\n"
         "  heartpole dataset --policy expert --epsilon 0.1 --episodes 200 --seed 1\n"
-        "  heartpole dataset --standard --force                      # the standard collection",
+        "  heartpole dataset --standard --force                      # the standard collection\n"
+        "  heartpole dataset --policy expert --epsilon 0.1 --people default   # a person per episode",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--policy", metavar="P", help=POLICY_HELP)
@@ -67,6 +77,7 @@ def _register_dataset(subparsers: Subparsers) -> None:
     parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
     parser.add_argument("--id", dest="dataset_id", metavar="ID", help="dataset id (default: from policy and epsilon)")
     parser.add_argument("--force", action="store_true", help="replace an existing dataset of the same id")
+    add_people_arguments(parser, "each episode's person is recorded with it")
     parser.set_defaults(handler=run_dataset)
 
 
@@ -107,6 +118,10 @@ def run_dataset(args: argparse.Namespace) -> int:
         raise CommandError("give either --policy P or --standard")
     if args.standard and args.dataset_id:
         raise CommandError("--id names one dataset; it cannot be used with --standard")
+    if args.observe_traits and args.people is None:
+        raise CommandError("--observe-traits needs --people (the traits are the person's)")
+    if args.standard and args.people is not None:
+        raise CommandError("--people records one dataset: give --policy P, not --standard")
     max_steps = _library(lambda: _max_steps(args.env))
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
@@ -130,13 +145,15 @@ def run_dataset(args: argparse.Namespace) -> int:
                 dataset_id=args.dataset_id,
                 force=args.force,
                 progress=bar.update,
+                people=args.people,
+                observe_traits=args.observe_traits,
             )
         )
     meta = dataset.storage.metadata
     print(
         f"recorded {meta['dataset_id']}: {meta['total_episodes']} episodes, {meta['total_steps']} steps "
         f"in {meta['recording_seconds']:.1f} s (behaviour {meta['behaviour_policy']}, epsilon {meta['epsilon']}, "
-        f"seed {meta['seed']})\nin {datasets.local_root()}"
+        f"seed {meta['seed']}{_people_note(meta)})\nin {datasets.local_root()}"
     )
     return 0
 
@@ -172,13 +189,33 @@ def format_report(report: OPEReport) -> str:
     rewards = "expected-risk rewards" if report.expected_rewards else "realized rewards"
     header = (
         f"{report.policy} from {report.dataset_id}, gamma {report.gamma:g}, {rewards}\n"
-        f"true value {truth.value:.4f} (95% CI [{low:.4f}, {high:.4f}], {truth.episodes} episodes run on the env)"
+        f"true value {truth.value:.4f} (95% CI [{low:.4f}, {high:.4f}], {truth.episodes} episodes run on the env"
+        f"{WITH_PEOPLE if report.people else ''})"
     )
+    if report.people:
+        header += "\n" + _oracle_line(report)
     return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|"], rows)])
 
 
 # ------------------------------------------------------------------------------------------------------
 # helpers
+
+
+def _people_note(meta: dict[str, object]) -> str:
+    """``, people: 24 in a cohort`` (and traits observed) for a dataset recorded with people."""
+    people = meta.get("people")
+    if not isinstance(people, dict):
+        return ""
+    size = f"{len(people['cohort'])} in a cohort" if "cohort" in people else "a distribution"
+    return f", people: {size}" + (", traits observed" if meta.get("observe_traits") else "")
+
+
+def _oracle_line(report: OPEReport) -> str:
+    """The target's oracle regret over the dataset's people (undiscounted), or why there is none."""
+    oracle = report.oracle
+    if "oracle_regret" in oracle:
+        return f"oracle regret {oracle['oracle_regret']:.4f} (95% CI {_ci(oracle['oracle_regret_ci95'])}, return)"
+    return f"no oracle regret: {oracle.get('no_oracle_regret_reason')}"
 
 
 def _ci(interval: tuple[float, float]) -> str:

@@ -19,7 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
+from heartpole.cli.common import CommandError, Subparsers, add_people_arguments, format_table, one_line_error
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -56,6 +56,11 @@ regret against the true optimum (heartpole optimum) is at most {SOLVED_REGRET:g}
 where no optimum is known (v1, most variants), by the env's own bar: heart attacks at most
 {ABOVE_FLOOR:.0%} above the unavoidable floor and a score of at least {SHARE_OF_BEST:.0%} of the best known
 (v1: {V1_BAR.heart_attacks_at_most:.2f} and {V1_BAR.score_at_least:.2f}).
+
+--people default trains over a population, one person drawn per episode (hidden from the agent unless
+--observe-traits appends their traits to the observation); the evaluation then reports the oracle regret
+(each episode against its own person's optimum, solved once and cached) and a run is solved when the
+oracle regret is at most {SOLVED_REGRET:g} at the 95% upper bound. See docs/people.md.
 """
 
 EPILOG = """\
@@ -69,6 +74,7 @@ examples:
   heartpole train --preset runs/tune-ppo/best_preset.json --seeds 0-9   # a configuration 'heartpole tune' found
   heartpole evaluate --policy runs/ppo/model.zip       # evaluate the trained model again
   heartpole train --backend jax --seeds 0-4 --out runs/ppo-jax   # PPO in JAX, five seeds in one compiled call
+  heartpole train --people default --out runs/ppo-people          # trait-blind PPO over the default people
 
 --backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
 is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
@@ -113,6 +119,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    add_people_arguments(parser, "the evaluation reports the oracle regret")
     parser.add_argument(
         "--backend",
         default="sb3",
@@ -196,6 +203,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     if n_envs is not None:
         overrides["n_envs"] = n_envs
     overrides["seed"] = whole_number("--seed", args.seed, 0)
+    people = _people_kwargs(args)
+    if people and not is_file:
+        overrides["env_kwargs"] = people
     score_rate = _score_rate(args.score_rate)
     try:
         if not is_file:
@@ -210,7 +220,23 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
         raise CommandError(" ".join(str(error).split())) from None
     if args.algo is not None and args.algo.lower() != config.algo:
         raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
+    if people:
+        overrides["env_kwargs"] = {**config.env_kwargs, **people}
     return replace(config, **overrides)
+
+
+def _people_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The env keyword arguments of ``--people`` and ``--observe-traits`` (empty without ``--people``)."""
+    people, observe = getattr(args, "people", None), getattr(args, "observe_traits", False)
+    if observe and people is None:
+        raise CommandError("--observe-traits needs --people (the traits are the person's)")
+    if people is None:
+        return {}
+    from heartpole.people import POPULATIONS
+
+    if people not in POPULATIONS:
+        raise CommandError(f"unknown population {people!r} for --people; named populations: {sorted(POPULATIONS)}")
+    return {"people": people, "observe_traits": True} if observe else {"people": people}
 
 
 def _score_rate(text: str) -> ScoreRate:
@@ -353,6 +379,9 @@ def format_run(run: dict[str, Any]) -> str:
         f" ({describe_bar(run['solved_bar'])})" if "solved_bar" in run else ""
     )
     regret = "" if run.get("regret") is None else f"regret {format_regret(run)}, "
+    if run.get("oracle_regret") is not None:
+        low_o, high_o = run["oracle_regret_ci95"]
+        regret += f"oracle regret {run['oracle_regret']:.4f} [{low_o:.4f}, {high_o:.4f}], "
     return (
         f"seed {run['seed']}: heart attacks {run['heart_attacks_per_episode']:.3f}/episode, "
         f"score {run['score']:.4f}, return {run['mean_return']:.2f} [{low:.2f}, {high:.2f}], "
@@ -377,6 +406,8 @@ def format_regret(run: dict[str, Any]) -> str:
 
 def describe_bar(bar: dict[str, Any]) -> str:
     """A solved bar in words: ``regret <= 0.01 (95% upper bound)`` or ``heart attacks <= 1.30, score >= 0.30``."""
+    if "oracle_regret_at_most" in bar:
+        return f"oracle regret <= {bar['oracle_regret_at_most']:g} (95% upper bound)"
     if "regret_at_most" in bar:
         return f"regret <= {bar['regret_at_most']:g} (95% upper bound)"
     text = f"heart attacks <= {bar['heart_attacks_per_episode_at_most']:.2f}"

@@ -16,6 +16,9 @@ Datasets are written under a temporary folder in Minari's datasets folder (``MIN
 ``~/.minari/datasets``) and moved into place when complete, so an error, Ctrl-C or SIGTERM leaves nothing
 half written ([`heartpole.files`][heartpole.files]). Dataset ids read ``heartpole/<env>/<behaviour>-v0``, e.g.
 ``heartpole/v0/reference-eps20-v0``.
+
+With ``people=``, each episode's person is in the infos too (``person`` and ``traits``) and the population in
+the metadata: see [`heartpole.offline.population`][heartpole.offline.population].
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -43,7 +46,15 @@ from heartpole import files
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.model import check_integer
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
+from heartpole.offline.population import (
+    people_kwargs,
+    people_metadata,
+    people_reference_scores,
+    people_suffix,
+    person_infos,
+)
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
+from heartpole.people import People
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.registry import env_dynamics, quiet_version_warnings
 
@@ -117,6 +128,8 @@ def record_dataset(
     description: str | None = None,
     num_envs: int | None = None,
     progress: Callable[[int], None] | None = None,
+    people: People | str | None = None,
+    observe_traits: bool = False,
 ) -> MinariDataset:
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
@@ -129,11 +142,15 @@ def record_dataset(
         env_id: a registered HeartPole env id (``recover_environment()`` makes it again).
         seed: the seed of everything random: the env, the ``random`` policy, the behaviour's draws.
         dataset_id: the Minari id (default: [`default_dataset_id`][heartpole.offline.datasets.default_dataset_id] of the
-            behaviour's name and ``env_id``).
+            behaviour's name and ``env_id``; with people, the name ends in ``-people-<name>``, then ``-traits``).
         force: replace an existing dataset of that id.
         description: the dataset's description (default: one written from the arguments).
         num_envs: episodes run side by side and written together (default: up to 1,000).
         progress: a callable given the number of env steps done since its last call.
+        people: a population ([`People`][heartpole.people.People] or a name such as ``"default"``): one person
+            per episode, recorded in the infos and the metadata (see
+            [`heartpole.offline.population`][heartpole.offline.population]).
+        observe_traits: append each person's traits to the observation (needs ``people``).
 
     Returns:
         the ``minari.MinariDataset``, loaded from its final place.
@@ -145,7 +162,8 @@ def record_dataset(
     import minari
 
     target_id, create = _plan(policy, epsilon, episodes, env_id, seed, dataset_id, force, description, num_envs,
-                              progress)  # fmt: skip
+                              progress, people_kwargs(people, observe_traits),
+                              people_suffix(people, observe_traits))  # fmt: skip
     with quiet_version_warnings():
         _write_atomically({target_id: create}, force)
         return minari.load_dataset(target_id)
@@ -162,6 +180,8 @@ def _plan(
     description: str | None,
     num_envs: int | None,
     progress: Callable[[int], None] | None,
+    env_kwargs: dict[str, Any] | None = None,
+    suffix: str = "",
 ) -> tuple[str, Callable[[], None]]:
     """[`record_dataset`][heartpole.offline.datasets.record_dataset]'s checks; its dataset id and the function that
     records it into Minari's folder."""
@@ -173,7 +193,7 @@ def _plan(
     base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
     components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
-    target_id = dataset_id or default_dataset_id(name, env_id)
+    target_id = dataset_id or default_dataset_id(name + suffix, env_id)
     _check_dataset_id(target_id)
     if not force and _exists(target_id):
         raise FileExistsError(
@@ -181,7 +201,10 @@ def _plan(
         )
     chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     seeds = [chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
-    low, high = reference_scores(env_id)
+    env_kwargs = env_kwargs or {}
+    low, high = (
+        reference_scores(env_id) if not env_kwargs else people_reference_scores(env_id, env_kwargs, REFERENCE_EPISODES)
+    )
     extra = {
         "behaviour_policy": policy_name(base),
         "behaviour_components": [policy_name(b) for b in components],
@@ -195,6 +218,7 @@ def _plan(
         "reference_scores": "ref_min_score: random's expected return; ref_max_score: the optimum's (else the expert's) "
         f"({REFERENCE_EPISODES} episodes, expected-risk estimate)",
         "heartpole_version": _version(),
+        **people_metadata(env_kwargs),
     }
     text = description or (
         f"{episodes} episodes of {env_id} by the behaviour policy {policy_name(base)!r} with epsilon={epsilon} "
@@ -216,7 +240,7 @@ def _plan(
     def create() -> None:
         started = time.perf_counter()
         dataset = None
-        for part in iter_collect(behaviour, episodes, env_id, seeds, progress):
+        for part in iter_collect(behaviour, episodes, env_id, seeds, progress, env_kwargs):
             if dataset is None:
                 dataset = minari.create_dataset_from_buffers(target_id, to_buffers(part), **options)
             else:
@@ -293,6 +317,7 @@ def to_buffers(trajectories: Trajectories) -> list[EpisodeBuffer]:
             infos={
                 "action_probabilities": trajectories.action_probabilities[i],
                 **{key: getattr(trajectories, key)[i] for key in INFO_KEYS},
+                **person_infos(trajectories, i),
             },
         )
         for i in range(trajectories.episodes)

@@ -19,13 +19,17 @@ whose probabilities the dataset stores):
 
 PDIS and DR come with a 95% Student-t interval over episodes (their per-episode terms are independent);
 WPDIS and FQE with none.
+
+A dataset recorded with ``people`` is evaluated against the truth over the same population: the target's true
+value in the env with the dataset's ``people`` (and ``observe_traits``), and for a finite cohort its oracle
+regret (see [`heartpole.offline.population`][heartpole.offline.population]).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -42,6 +46,7 @@ from heartpole.model import (
     productivity,
 )
 from heartpole.offline.behaviour import action_probabilities
+from heartpole.offline.population import dataset_env_kwargs, people_truth_fields
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
 from heartpole.policies import Policy, load_policy, policy_name
@@ -239,7 +244,12 @@ def estimate_all(
 
 @dataclass(frozen=True)
 class OPEReport:
-    """The estimates of one target policy's value from one dataset, beside the true value."""
+    """The estimates of one target policy's value from one dataset, beside the true value.
+
+    For a dataset recorded with ``people``, ``truth`` is measured over the same population, ``people`` is the
+    population (``People.to_dict()``) and ``oracle`` holds the target's ``oracle_regret`` and
+    ``oracle_regret_ci95`` (a finite cohort) or its ``no_oracle_regret_reason``; both are empty without people.
+    """
 
     dataset_id: str
     policy: str
@@ -247,6 +257,8 @@ class OPEReport:
     expected_rewards: bool
     estimates: list[Estimate]
     truth: TrueValue
+    people: dict[str, Any] = field(default_factory=dict)
+    oracle: dict[str, Any] = field(default_factory=dict)
 
     def error(self, estimate: Estimate) -> float:
         """``estimate - truth`` (the truth's expected-risk discounted value)."""
@@ -269,6 +281,12 @@ class OPEReport:
                 for e in self.estimates
             ],
             "truth": self.truth.to_dict(),
+            "people": self.people or None,
+            "oracle_regret": json_number(self.oracle.get("oracle_regret", math.nan)),
+            "oracle_regret_ci95": json_interval(self.oracle.get("oracle_regret_ci95", NAN_PAIR)),
+            "no_oracle_regret_reason": self.oracle.get(
+                "no_oracle_regret_reason", None if self.people else "the dataset was recorded without people"
+            ),
         }
 
 
@@ -287,27 +305,35 @@ def evaluate_off_policy(
         dataset_id: a dataset recorded by ``heartpole dataset`` (in ``MINARI_DATASETS_PATH``).
         policy: the target: a policy callable, a built-in name or a model path.
         gamma: the discount, in (0, 1].
-        truth_episodes: episodes for [`true_value`][heartpole.offline.truth.true_value].
+        truth_episodes: episodes for [`true_value`][heartpole.offline.truth.true_value] (and, under a finite
+            cohort of people, for the oracle regret).
         seed: the seed of the truth's episodes and of a ``random`` target.
         expected_rewards: estimate from the expected-risk rewards (see
             [`estimate_all`][heartpole.offline.ope.estimate_all]).
 
     Raises:
-        ValueError: an unknown dataset, a dataset without propensities, an unknown policy, bad gamma.
+        ValueError: an unknown dataset, a dataset without propensities, an unknown policy, bad gamma, a target
+            that needs each step's person (``oracle``).
     """
     from heartpole.offline.datasets import load_local
 
     dataset = load_local(dataset_id)
-    env_id = str(dataset.storage.metadata.get("env_id", "HeartPole-v0"))
+    metadata = dataset.storage.metadata
+    env_id, env_kwargs = str(metadata.get("env_id", "HeartPole-v0")), dataset_env_kwargs(metadata)
     trajectories = Trajectories.from_dataset(dataset)
     if isinstance(policy, str):
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
-        target, name = load_policy(policy, env_id, rng=rng), policy
+        target, name = load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng), policy
     else:
         target, name = policy, policy_name(policy)
+    if getattr(target, "needs_person", False):
+        raise ValueError(f"policy {name!r} needs each episode's person: off-policy evaluation estimates policies of "
+                         "the observations only")  # fmt: skip
     estimates = estimate_all(trajectories, target, gamma, expected_rewards=expected_rewards)
-    truth = true_value(policy, gamma, truth_episodes, env_id, seed)
-    return OPEReport(dataset_id, name, float(gamma), expected_rewards, estimates, truth)
+    truth = true_value(policy, gamma, truth_episodes, env_id, seed, env_kwargs=env_kwargs)
+    oracle = people_truth_fields(policy, truth_episodes, env_id, seed, env_kwargs)
+    people = dict(metadata.get("people") or {})
+    return OPEReport(dataset_id, name, float(gamma), expected_rewards, estimates, truth, people, oracle)
 
 
 def _state_action(z: np.ndarray, actions: np.ndarray, k: int) -> np.ndarray:

@@ -9,7 +9,7 @@ off-policy estimators ([`heartpole.offline.ope`][heartpole.offline.ope]) and lea
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -19,12 +19,25 @@ from heartpole.registry import quiet_version_warnings
 from heartpole.rewards import expected_risk
 from heartpole.rollout import base_env, check_actions, episode_steps, vector_env
 
+_ARRAYS = (
+    "observations",
+    "actions",
+    "rewards",
+    "action_probabilities",
+    "heart_attack_risk",
+    "productivity",
+    "heart_attack",
+    "score",
+)
+
 if TYPE_CHECKING:
     from minari import MinariDataset
 
     from heartpole.env import HeartPole
 
 INFO_KEYS = ("heart_attack_risk", "productivity", "heart_attack", "score")
+PEOPLE_KEYS = ("person", "traits")
+"""The infos of a dataset recorded with ``people``: each episode's person, repeated at every observation."""
 _INFO_DTYPES = {"heart_attack_risk": np.float32, "productivity": np.float32, "heart_attack": bool, "score": np.float32}
 
 
@@ -34,7 +47,10 @@ class Trajectories:
 
     ``action_probabilities[n, t]`` is the behaviour's distribution at observation ``t``; the infos at
     ``t + 1`` are those the env returned for the step from ``t`` (index 0 is the reset, all zeros).
-    ``penalty`` is the env's heart-attack penalty (100 in HeartPole).
+    ``penalty`` is the env's heart-attack penalty (100 in HeartPole). In an env with ``people``, ``person``
+    ``(N,)`` int64 is each episode's person (cohort index, -1 for a distribution's) and ``traits``
+    ``(N, len(people.traits))`` float32 their traits (the reset's ``info["person"]`` and ``info["traits"]``);
+    both are ``None`` without people.
     """
 
     observations: np.ndarray  # (N, T + 1, obs_dim) float32
@@ -46,6 +62,8 @@ class Trajectories:
     heart_attack: np.ndarray  # (N, T + 1) bool
     score: np.ndarray  # (N, T + 1) float32
     penalty: float = 100.0
+    person: np.ndarray | None = None  # (N,) int64, or None without people
+    traits: np.ndarray | None = None  # (N, k) float32, or None without people
 
     @property
     def episodes(self) -> int:
@@ -86,16 +104,25 @@ class Trajectories:
 
     def subset(self, index: slice | np.ndarray) -> Trajectories:
         """The episodes selected by ``index`` (a slice, mask or index array)."""
+        arrays: dict[str, Any] = {n: getattr(self, n)[index] for n in _ARRAYS}
         return Trajectories(
-            **{f.name: getattr(self, f.name)[index] for f in fields(self) if f.name != "penalty"},
+            **arrays,
             penalty=self.penalty,
+            person=None if self.person is None else self.person[index],
+            traits=None if self.traits is None else self.traits[index],
         )
 
     @classmethod
     def concatenate(cls, parts: Sequence[Trajectories]) -> Trajectories:
         """The episodes of ``parts``, in order."""
-        names = [f.name for f in fields(cls) if f.name != "penalty"]
-        return cls(**{n: np.concatenate([getattr(p, n) for p in parts]) for n in names}, penalty=parts[0].penalty)
+        with_people = [p.person is not None and p.traits is not None for p in parts]
+        if any(w != with_people[0] for w in with_people):
+            raise ValueError("cannot concatenate episodes with people and episodes without")
+        arrays: dict[str, Any] = {n: np.concatenate([getattr(p, n) for p in parts]) for n in _ARRAYS}
+        if with_people[0]:
+            arrays["person"] = np.concatenate([p.person for p in parts])
+            arrays["traits"] = np.concatenate([p.traits for p in parts])
+        return cls(**arrays, penalty=parts[0].penalty)
 
     @classmethod
     def from_dataset(cls, dataset: MinariDataset, penalty: float | None = None) -> Trajectories:
@@ -125,6 +152,7 @@ class Trajectories:
             action_probabilities=np.stack([e.infos["action_probabilities"] for e in episodes]).astype(np.float64),
             **{key: np.stack([e.infos[key] for e in episodes]).astype(_INFO_DTYPES[key]) for key in INFO_KEYS},
             penalty=float(penalty),
+            **_episode_people(episodes),
         )
 
 
@@ -176,6 +204,7 @@ def _collect_chunk(
         actions = np.empty((steps, size), dtype=np.int64)
         rewards = np.empty((steps, size), dtype=np.float64)
         infos = {key: np.zeros((steps + 1, size), dtype=dtype) for key, dtype in _INFO_DTYPES.items()}
+        people: dict[str, np.ndarray] = {}
 
         def choose(obs: np.ndarray, t: int) -> np.ndarray:
             if t == 0:
@@ -186,6 +215,8 @@ def _collect_chunk(
 
         for step in episode_steps(env, reset_seed, choose):
             actions[step.t], rewards[step.t] = step.actions, step.rewards
+            if step.t == 0 and step.person is not None:  # NEXT_STEP autoreset: step 0's info is this episode's
+                people = {"person": step.person.copy(), "traits": np.asarray(step.info["traits"], np.float32).copy()}
             for key in INFO_KEYS:
                 infos[key][step.t + 1] = step.info[key]
             if progress:
@@ -199,7 +230,18 @@ def _collect_chunk(
         action_probabilities=probabilities.transpose(1, 0, 2).copy(),
         **{key: value.T.copy() for key, value in infos.items()},
         penalty=penalty,
+        **people,
     )
+
+
+def _episode_people(episodes: Sequence[Any]) -> dict[str, np.ndarray]:
+    """``person`` and ``traits`` of a dataset's episodes (the first observation's infos), if recorded."""
+    if "person" not in (episodes[0].infos or {}):
+        return {}
+    return {
+        "person": np.array([e.infos["person"][0] for e in episodes], dtype=np.int64),
+        "traits": np.stack([np.asarray(e.infos["traits"][0], dtype=np.float32) for e in episodes]),
+    }
 
 
 def _penalty(dataset: MinariDataset) -> float:

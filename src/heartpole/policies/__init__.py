@@ -166,7 +166,19 @@ def load_policy(
         )
     from heartpole.policies.saved import load_model_policy  # imports Stable-Baselines3 when it loads
 
-    return load_model_policy(spec, dynamics)
+    return load_model_policy(spec, dynamics, _observation_shape(env_id, env_kwargs))
+
+
+def _observation_shape(env_id: str, env_kwargs: Mapping[str, Any] | None) -> tuple[int, ...]:
+    """The observation shape of ``env_id`` made with ``env_kwargs`` (wider than its variables with
+    ``observe_traits`` or ``measurement``)."""
+    import gymnasium as gym
+
+    with quiet_version_warnings():
+        env = gym.make(env_id, **dict(env_kwargs or {}))
+    shape = tuple(env.observation_space.shape or ())
+    env.close()
+    return shape
 
 
 def _looks_like_path(spec: str) -> bool:

@@ -147,12 +147,17 @@ def _normalization(normalizer: Normalizer | None) -> tuple[np.ndarray, np.ndarra
     return np.asarray(rms.mean, dtype=np.float64), scale, float(normalizer.clip_obs)
 
 
-def load_model_policy(path: str | Path, dynamics: Dynamics | None = None) -> ModelPolicy:
+def load_model_policy(
+    path: str | Path, dynamics: Dynamics | None = None, obs_shape: tuple[int, ...] | None = None
+) -> ModelPolicy:
     """The SB3 model saved at ``path`` (with ``vecnormalize.pkl`` beside it, if any) as a policy.
+
+    ``obs_shape`` is the env's observation shape where it is wider than ``dynamics``' variables (an env
+    with ``observe_traits`` or ``measurement``); ``None``: one entry per variable.
 
     Raises:
         FileNotFoundError: no such file.
-        ValueError: not an SB3 model zip, an unknown algorithm, or spaces that do not match ``dynamics``.
+        ValueError: not an SB3 model zip, an unknown algorithm, or spaces that do not match the env's.
     """
     path = Path(path)
     if path.is_dir():
@@ -161,7 +166,7 @@ def load_model_policy(path: str | Path, dynamics: Dynamics | None = None) -> Mod
         raise FileNotFoundError(f"model file not found: {path}")
     algo = detect_algorithm(path)
     model = _load_model(path, algo)
-    _check_spaces(path, model, dynamics or default_dynamics())
+    _check_spaces(path, model, dynamics or default_dynamics(), obs_shape)
     normalizer_path = recorded_normalizer(path)
     normalizer = _load_normalizer(normalizer_path) if normalizer_path is not None else None
     policy = ModelPolicy(model, normalizer, name=str(path))
@@ -295,8 +300,10 @@ def _load_model(path: Path, algo: str) -> BaseAlgorithm:
         raise ValueError(f"{path}: cannot load it as a {algo.upper()} model ({one_line(error)})") from None
 
 
-def _check_spaces(path: Path, model: BaseAlgorithm, dynamics: Dynamics) -> None:
-    obs_shape = (len(dynamics.variables),)
+def _check_spaces(
+    path: Path, model: BaseAlgorithm, dynamics: Dynamics, obs_shape: tuple[int, ...] | None = None
+) -> None:
+    obs_shape = (len(dynamics.variables),) if obs_shape is None else tuple(obs_shape)
     model_obs = tuple(getattr(model.observation_space, "shape", ()) or ())
     model_actions = getattr(model.action_space, "n", None)
     if model_obs != obs_shape or model_actions != len(dynamics.actions):
