@@ -161,6 +161,9 @@ def test_cli_compare_and_baselines_show_the_oracle_regret(capsys, monkeypatch, t
     assert code == 0 and "oracle" in results and results["expert"]["oracle_regret"] > 0
     assert "oracle regret (95% CI)" in (tmp_path / "baselines.md").read_text()
     assert "oracle_regret_ci95_low" in (tmp_path / "baselines.csv").read_text().splitlines()[0]
+    code, out, _ = _run(capsys, monkeypatch, *argv[:-1], "--out", str(tmp_path / "table"))
+    (note,) = [line for line in out.splitlines() if line.startswith("optimal - expert")]
+    assert "oracle regret = each person's optimum" in note and "nan" not in note
 
 
 def test_cli_refuses_an_unknown_population(capsys, monkeypatch) -> None:  # type: ignore[no-untyped-def]

@@ -387,10 +387,15 @@ def _optimal_note(results: Sequence[EvaluationResult], markdown: bool = False) -
         return []
     pair = Comparison.of(by_name["optimal"], by_name["expert"])
     paired = " (paired 95% CI)" if has_interval(pair.expected_ci95) else ""
+    optimum = by_name["optimal"].optimal_return
+    regret = (
+        f"regret = optimum {optimum:.5f} minus the expected-risk return"
+        if math.isfinite(optimum)  # under people each person has their own optimum
+        else "oracle regret = each person's optimum minus the expected-risk return"
+    )
     lines = [
         f"optimal - expert: {plus_minus(pair.expected_difference, pair.expected_ci95)} expected-risk return"
-        f"{paired}; regret = optimum {by_name['optimal'].optimal_return:.5f} minus the expected-risk "
-        f"return; solved: 95% upper bound of the regret <= {SOLVED_REGRET}"
+        f"{paired}; {regret}; solved: 95% upper bound of the {regret.split(' =')[0]} <= {SOLVED_REGRET}"
     ]
     return ["", *lines] if markdown else lines
 
