@@ -14,6 +14,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$(sha256sum pyproject.toml)" ]; 
   "$venv/bin/python" -m pip install -q -e ".[jax]" gymnax six "pytest>=7"
   sha256sum pyproject.toml > "$stamp"
 fi
+[ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run
 "$venv/bin/python" -m pip check
 "$venv/bin/python" -c "from importlib.metadata import version as v; print('test_gymnax:', *(f'{p} {v(p)}' for p in ('gymnax', 'gymnasium', 'jax')))"
 "$venv/bin/python" -m pytest -q -p no:cacheprovider tests/test_jax_env.py -k gymnax "$@"

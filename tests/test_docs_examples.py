@@ -37,7 +37,8 @@ def test_skipped_blocks_say_why() -> None:
 def test_the_examples_run(page: Path, tmp_path: Path) -> None:
     if page.name in NEEDS:
         pytest.importorskip(NEEDS[page.name])
-    environment = {**os.environ, "MINARI_DATASETS_PATH": str(tmp_path / "minari"), "HEARTPOLE_CACHE_DIR": str(tmp_path)}
+    # The session's optimum cache (conftest): the people page's cohort is solved once per run, not per page.
+    environment = {**os.environ, "MINARI_DATASETS_PATH": str(tmp_path / "minari")}
     if page.name == "offline.md":  # the page loads a dataset it tells the reader to record first
         record = [
             sys.executable,
