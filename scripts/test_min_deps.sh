@@ -34,4 +34,4 @@ echo "test_min_deps: $pins"
 "$venv/bin/python" -m pip check
 "$venv/bin/python" -m pytest -q -p no:cacheprovider -m "not slow" \
   tests/test_registry.py tests/test_env.py tests/test_vector.py tests/test_policies.py \
-  tests/test_plots.py tests/test_cli_plot.py tests/test_training.py "$@"
+  tests/test_plots.py tests/test_cli_plot.py tests/test_training.py tests/test_training_adapter.py "$@"

@@ -15,3 +15,15 @@ def _private_caches(tmp_path_factory: pytest.TempPathFactory) -> None:
         os.environ["HEARTPOLE_CACHE_DIR"] = str(tmp_path_factory.mktemp("heartpole-cache"))
     if "HEARTPOLE_JAX_CACHE" not in os.environ:
         os.environ["HEARTPOLE_JAX_CACHE"] = str(tmp_path_factory.mktemp("heartpole-jax-cache"))
+
+
+RAY_FILES = frozenset({"test_scale.py", "test_signals.py"})
+"""Test files that start Ray: with pytest-xdist (``-n 2 --dist loadgroup``) they share one worker, so that
+two local Ray clusters never start at once on a 2-core machine."""
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Group the tests of `RAY_FILES` on one xdist worker."""
+    for item in items:
+        if item.path.name in RAY_FILES:
+            item.add_marker(pytest.mark.xdist_group("ray"))
