@@ -13,7 +13,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from heartpole import kernel
+from heartpole import kernel, person_kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.env import RESET_INFO, build_dynamics, check_render_mode, episode_length, observation_space
@@ -151,10 +151,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._person = _read_only(np.full(self.num_envs, -1, dtype=np.int64))
         self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
         self._traits = _read_only(self._traits)
-        self._people: np.ndarray | None = None
-        self._person_row: np.ndarray | None = None
-        if self._persons is not None:
-            self._people, self._person_row = self._persons.arrays(self.num_envs)
+        self._cells = None if self._persons is None else self._persons.cells(self.num_envs)
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
 
@@ -240,9 +237,10 @@ class HeartPoleVectorEnv(VectorEnv):
         if stepped and self._persons is None:
             kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
         elif stepped:
-            flat, layout = self._persons.flat, self.dynamics.layout  # type: ignore[union-attr]
-            people, row = self._people, self._person_row
-            self._persons.kernels.step_envs(self._envs, results, action, self._rng, flat, layout, people, row)  # type: ignore[union-attr]
+            flat, overlay = self._persons.flat, self._persons.overlay  # type: ignore[union-attr]
+            person_kernel.step_envs(
+                self._envs, results, action, self._rng, flat, self.dynamics.layout, self._cells, overlay
+            )
         reward, worked, risk, attack, new_score = results
         present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
@@ -316,7 +314,7 @@ class HeartPoleVectorEnv(VectorEnv):
         person[which], traits[which] = drawn.person[chosen], drawn.traits()[chosen]
         self._person, self._traits = _read_only(person), _read_only(traits)
         taken = drawn if count == int(np.count_nonzero(which)) else _rows(drawn, which)
-        self._persons.assign(self._people, self._person_row, which, taken)  # type: ignore[arg-type]
+        self._persons.assign(self._cells, which, taken)  # type: ignore[arg-type]
 
     def _person_info(self, info: dict[str, Any], present: np.ndarray | None = None) -> None:
         """Put each env's current person (cohort index, -1 for a distribution) and traits into ``info``, with
@@ -334,9 +332,8 @@ class HeartPoleVectorEnv(VectorEnv):
         else:
             if draw:
                 self._new_people(which, int(which.sum()))
-            flat, layout = self._persons.flat, self.dynamics.layout
-            people, row = self._people, self._person_row
-            self._persons.kernels.reset_envs(self._envs, self._rng, which, flat, layout, people, row)
+            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
+            person_kernel.reset_envs(self._envs, self._rng, which, flat, layout, self._cells, overlay)
         self._starts[which] = self._clock
         self._next_end = int(self._starts.min()) + self.max_steps
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
