@@ -184,28 +184,32 @@ def children_cpu_seconds() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+COMPILE_SCRIPT = (
+    "import sys, time, heartpole, numpy as np; people = (sys.argv[1:] or [None])[0]; start = time.process_time(); "
+    "e = heartpole.HeartPole(people=people); e.reset(seed=0); e.step(0); "
+    "v = heartpole.HeartPoleVectorEnv(4, people=people); v.reset(seed=0); v.step(np.zeros(4, dtype=int)); "
+    "print(time.process_time() - start)"
+)
+"""The first reset and step of a single and a vector env, in a fresh process: their loops compiled or loaded."""
+
+
 def section_compile() -> None:
-    print("compile time of the kernels (v0's single and vector env), in a fresh process")
-    script = (
-        "import time, heartpole, numpy as np; start = time.process_time(); "
-        "e = heartpole.HeartPole(); e.reset(seed=0); e.step(0); "
-        "v = heartpole.HeartPoleVectorEnv(4); v.reset(seed=0); v.step(np.zeros(4, dtype=int)); "
-        "print(time.process_time() - start)"
-    )
-    cache = tempfile.mkdtemp(prefix="heartpole-numba-")
-    try:
-        for label in ("first use (empty cache)", "cached"):
-            start, cpu = time.perf_counter(), children_cpu_seconds()
-            environment = {**os.environ, "NUMBA_CACHE_DIR": cache}
-            done = subprocess.run([sys.executable, "-c", script], check=True, env=environment, capture_output=True)
-            wall, cpu = time.perf_counter() - start, children_cpu_seconds() - cpu
-            kernels = float(done.stdout)
-            print(
-                f"  {label:<25} {wall:5.1f} s wall, {cpu:5.1f} s CPU with process start and imports; "
-                f"{kernels:4.1f} s CPU after the imports"
-            )
-    finally:
-        shutil.rmtree(cache, ignore_errors=True)
+    print("compile time of the loops (single and vector env, v0 and with people), in a fresh process")
+    for name, arguments in (("v0", []), ("people='default'", ["default"])):
+        cache = tempfile.mkdtemp(prefix="heartpole-numba-")
+        try:
+            for label in ("first use (empty cache)", "cached"):
+                start, cpu = time.perf_counter(), children_cpu_seconds()
+                environment = {**os.environ, "NUMBA_CACHE_DIR": cache}
+                command = [sys.executable, "-c", COMPILE_SCRIPT, *arguments]
+                done = subprocess.run(command, check=True, env=environment, capture_output=True)
+                wall, cpu = time.perf_counter() - start, children_cpu_seconds() - cpu
+                print(
+                    f"  {name:<16} {label:<25} {wall:5.1f} s wall, {cpu:5.1f} s CPU with process start and "
+                    f"imports; {float(done.stdout):4.1f} s CPU after the imports"
+                )
+        finally:
+            shutil.rmtree(cache, ignore_errors=True)
 
 
 def section_flat(chunks: int = 10, chunk_steps: int = 50_000) -> None:

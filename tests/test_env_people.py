@@ -144,6 +144,28 @@ def test_autoreset_modes_draw_new_people(mode: AutoresetMode) -> None:
     assert np.mean(before != after) > 0.8  # new people (the same one again about 1 time in 24)
 
 
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_an_info_kept_keeps_its_people(mode: AutoresetMode) -> None:
+    """info's person and traits go out with no copy per step: read-only, and never changed afterwards by the
+    env (later steps, autoresets drawing new people, a masked reset)."""
+    n = 50
+    env = HeartPoleVectorEnv(n, people=UNIFORM, max_steps=3, autoreset_mode=mode)
+    _, info = env.reset(seed=0)
+    kept = [info]
+    for t in range(10):
+        kept.append(env.step(np.zeros(n, dtype=np.int64))[4])
+        if t == 4:
+            kept.append(env.reset(options={"reset_mask": np.arange(n) % 2 == 0})[1])
+    copies = [(info["person"].copy(), info["traits"].copy()) for info in kept]
+    for _ in range(4):
+        env.step(np.zeros(n, dtype=np.int64))
+    for info, (person, traits) in zip(kept, copies):
+        assert np.array_equal(info["person"], person) and np.array_equal(info["traits"], traits)
+        with pytest.raises(ValueError, match="read-only"):
+            info["traits"][0] = 0.0
+    assert not np.array_equal(copies[0][1], copies[-1][1])  # new people were drawn meanwhile
+
+
 def test_observe_traits_observation_and_space() -> None:
     env = gym.make("HeartPole-v0", people="default", observe_traits=True)
     traits = People.default().traits

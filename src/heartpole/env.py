@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
-from heartpole import kernel
+from heartpole import kernel, person_kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
@@ -259,11 +259,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         """The population each episode's person is drawn from (``None``: everyone has the env's parameters)."""
         self._persons = None if self.people is None else PersonTables(self.dynamics, self.people)
         self._sample: Sample | None = None  # the person of the episode
-        # the kernel's numbers of the people and the row of this episode's person in them
-        self._people: np.ndarray | None = None
-        self._person: np.ndarray | None = None
-        if self._persons is not None:
-            self._people, self._person = self._persons.arrays(1)
+        self._cells = None if self._persons is None else self._persons.cells(1)  # the kernel's numbers of the person
         self._seen: Seen | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)
@@ -323,9 +319,9 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         else:
             assert self.people is not None and people_rng is not None
             self._sample = self.people.sample(people_rng, 1)
-            self._persons.assign(self._people, self._person, which, self._sample)  # type: ignore[arg-type]
-            flat, layout = self._persons.flat, self.dynamics.layout
-            self._persons.kernels.reset_envs(envs, rng, which, flat, layout, self._people, self._person)
+            self._persons.assign(self._cells, which, self._sample)  # type: ignore[arg-type]
+            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
+            person_kernel.reset_envs(envs, rng, which, flat, layout, self._cells, overlay)
         self._envs, self._rng = envs, rng
         if self._observer.sensor is not None:
             self._seen = Seen(self._observer.sensor, 1)
@@ -347,8 +343,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         if self._persons is None:
             step = kernel.step_one(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
         else:
-            flat, layout = self._persons.flat, self.dynamics.layout
-            step = self._persons.kernels.step_one(envs, index, self._rng, flat, layout, self._people, self._person)
+            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
+            step = person_kernel.step_one(envs, index, self._rng, flat, layout, self._cells, overlay)
         reward, worked, risk, attack, new_score = step
         if self._seen is not None:
             self._seen.step(envs.T, None)

@@ -2,19 +2,28 @@
 
 A population of people ([`heartpole.people`][heartpole.people]) changes a few numbers of a variant's tables
 from one person to the next (the heart-attack proclivity, the fading, the sleep's length, the waking
-alertness) and leaves the others alone. [`kernels`][heartpole.person_kernel.kernels] compiles
-[`step_envs`][heartpole.kernel.step_envs]'s loop for one set of such numbers (their *positions* in the raveled
-packed tables, [`pack`][heartpole.kernel.pack]): number ``positions[k]`` is read from row ``k + 1`` of a
-``(len(positions) + 1, num_envs)`` float32 array of per-env values (``cells``; row 0 unused), every other
-number from the variant's own table. The positions are constants of the compiled code, so each varying number
-costs one contiguous load per env and the shared ones nothing new: one compiled loop, no Python per env, no
-formula (the step is [`heartpole.model`][heartpole.model]'s, compiled by [`heartpole.kernel`][heartpole.kernel]).
+alertness) and leaves the others alone. [`step_envs`][heartpole.person_kernel.step_envs] is
+[`heartpole.kernel`][heartpole.kernel]'s loop over envs (the same step, [`heartpole.model`][heartpole.model]'s,
+no formula of its own) with those numbers read per env from two arguments:
+
+* ``cells``, ``(columns, num_envs)`` float32: row ``c`` holds every env's value of column ``c`` (numbers equal
+  for every person share a column: HeartPole's two fading variables fade alike). Each varying number costs one
+  contiguous load per env (LLVM vectorises them: the loop's arrays are declared not to overlap, `_no_alias`);
+  the shared numbers are read once, as in the v0 loop. (Gathering each env's numbers from a table of the
+  people by person index, as before, added about twice as much time to the v0 loop at 16,384 envs.)
+* ``overlay`` ([`overlay_for`][heartpole.person_kernel.overlay_for]): an empty array whose structured dtype says which
+  numbers the cells replace: a field ``p{position}`` (the number's index in the raveled packed tables,
+  [`pack`][heartpole.kernel.pack]) at byte offset ``4 * column``. numba compiles a loop per argument type, so the
+  positions are constants of the compiled code; being part of the arguments' *types*, they also key numba's
+  disk cache (`heartpole.jit`): a process loads the loop an earlier one compiled for the same positions.
+
 `heartpole.person_tables` finds the positions and fills the cells from the people drawn.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numba
@@ -22,31 +31,53 @@ import numpy as np
 from numba import njit
 from numba.core import cgutils
 from numba.core import types as nbtypes
-from numba.extending import intrinsic
+from numba.core.errors import TypingError
+from numba.extending import intrinsic, overload
 
 from heartpole import kernel, model
-from heartpole.jit import INLINE, JIT, JitOptions
-from heartpole.kernel import F32, U32, U64, add32, carray, draws, stored, to_fixed_tuple, tuple_setitem, where
+from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on
+from heartpole.kernel import F32, U32, U64, add32, draws, stored, to_fixed_tuple, tuple_setitem, where
 
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
 _step, _initial_state = kernel.compiled.step, kernel.compiled.initial_state
 _row_width = njit(**JIT, **INLINE)(kernel.row_width)
-STACK_PEOPLE = 4096
-"""A population's numbers up to this many (16 kB; the default cohort's are 24 people times 8) go on the stack."""
-COMPILED: JitOptions = {**JIT, "cache": False}
-"""The options of the loops compiled per set of positions (closures over them, which numba's disk cache
-does not keep apart)."""
+PER_POSITIONS: JitOptions = {**JIT, "cache": False}
+"""The options of the small functions made per set of positions (closures over them): never cached themselves,
+they are inlined into the loops, which are."""
 
 
-@njit(**JIT)
-def _fixed(values: Any, like: Any) -> Any:
-    """The first ``len(like)`` items of ``values`` as a tuple (a function of its own: see the kernel's)."""
-    return to_fixed_tuple(values[: len(like)], len(like))
+def overlay_for(positions: Sequence[int], columns: Sequence[int]) -> np.ndarray:
+    """The loops' ``overlay`` argument: number ``positions[j]`` of the raveled packed tables is read from row
+    ``columns[j]`` of the cells (see the module docstring). Fields may share an offset (numbers sharing a column)."""
+    given = [*positions, *columns]
+    if len(positions) != len(columns) or len(set(positions)) != len(positions) or min(given, default=0) < 0:
+        raise ValueError(
+            f"overlay_for needs distinct positions and one column each, all integers >= 0; got positions "
+            f"{list(positions)} and columns {list(columns)}"
+        )
+    dtype = np.dtype(
+        {
+            "names": [f"p{int(p)}" for p in positions],
+            "formats": [np.float32] * len(positions),
+            "offsets": [4 * int(c) for c in columns],
+            "itemsize": 4 * (max(map(int, columns), default=-1) + 1),
+        }
+    )
+    return np.empty(0, dtype=dtype)
+
+
+def _positions(fields: Iterable[tuple[str, Any]]) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """``(positions, columns)`` from an overlay's fields (``(name, field)``, the field's offset its item 1, in
+    NumPy's dtypes as in numba's records), in the order of the positions."""
+    pairs = sorted((int(name[1:]), int(field[1]) // 4) for name, field in fields)
+    return tuple(p for p, _ in pairs), tuple(c for _, c in pairs)
 
 
 @intrinsic
 def _data_intrinsic(typingctx: Any, array: Any) -> Any:
-    """A pointer to the float32 data of ``array``."""
+    """A pointer to the data of the float32 C-contiguous ``array`` (row ``r`` starts ``r * shape[1]`` after it)."""
+    if not (isinstance(array, nbtypes.Array) and array.dtype == nbtypes.float32 and array.layout == "C"):
+        raise TypingError(f"the cells must be a C-contiguous float32 array, got {array}")
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         return struct_proxy(signature.args[0])(context, builder, value=args[0]).data
@@ -56,48 +87,27 @@ def _data_intrinsic(typingctx: Any, array: Any) -> Any:
 
 
 @intrinsic
-def _int_data_intrinsic(typingctx: Any, array: Any) -> Any:
-    """A pointer to the int32 data of ``array``."""
+def _no_alias_intrinsic(typingctx: Any) -> Any:
+    """Tell LLVM that no two pointer arguments of the calling function overlap (``noalias``, which numba's own
+    ``noalias`` flag adds for its parallel loops): it then vectorises a loop reading the cells, another array
+    than those it writes, without checks at run time (with them, it gives up: too many pairs of arrays to
+    check). The loops' callers pass arrays of their own: the states, generator states and cells of their envs,
+    fresh results."""
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return struct_proxy(signature.args[0])(context, builder, value=args[0]).data
+        for argument in context.call_conv.get_arguments(builder.function):
+            if argument.type.is_pointer:
+                argument.add_attribute("noalias")
+        return context.get_dummy_value()
 
-    pointer: Any = nbtypes.CPointer
-    return pointer(nbtypes.int32)(array), codegen
-
-
-@intrinsic
-def _stack_buffer_intrinsic(typingctx: Any) -> Any:
-    """A pointer to room for `STACK_PEOPLE` float32 on the stack of the compiled function that calls it."""
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return kernel.alloca_once(builder, context.get_value_type(nbtypes.float32), size=STACK_PEOPLE)
-
-    pointer: Any = nbtypes.CPointer
-    return pointer(nbtypes.float32)(), codegen
+    return nbtypes.none(), codegen
 
 
 _data: Any = _data_intrinsic
-_int_data: Any = _int_data_intrinsic
-_stack_buffer: Any = _stack_buffer_intrinsic
+_no_alias: Any = _no_alias_intrinsic
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _data = _int_data = lambda array: array.ravel()  # noqa: E731
-
-
-@njit(**JIT, **INLINE)
-def _stack_people(people: Any) -> Any:
-    """The people's numbers ``(P, k)`` (at most `STACK_PEOPLE`) copied to the caller's stack: each env's are
-    then gathered from memory no written array overlaps, which LLVM vectorises without checks at run time.
-    (Larger tables, a distribution's with one row per env, are read where they are: slower, the same.)"""
-    table = carray(_stack_buffer(), people.shape)
-    for p in range(people.shape[0]):
-        for k in range(people.shape[1]):
-            table[p, k] = people[p, k]
-    return table
-
-
-if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _stack_people = lambda people: people  # type: ignore[assignment]  # noqa: E731
+    _data = lambda array: array.ravel()  # noqa: E731
+    _no_alias = lambda: None  # noqa: E731
 
 
 def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
@@ -114,38 +124,7 @@ def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variabl
     source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
     namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
     exec(source, namespace)  # code made here from field indices, nothing from outside
-    return njit(**COMPILED, **INLINE)(namespace["set_number"])
-
-
-def _overlay(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[int, int, int]) -> Any:
-    """A compiled ``own(effects, tables, action, cells, i)``: ``(effects, tables)`` with the env's own numbers
-    at ``positions`` (``cells[row + k][i]`` for ``positions[k]``), the action's only where it is ``action``.
-    A chain of one function per position, each with its indices as constants: nothing for LLVM to unroll."""
-    if not positions:
-        return njit(**COMPILED, **INLINE)(lambda effects, tables, action, cells, i: (effects, tables))
-    rest = _overlay(positions[1:], columns[1:], layout)
-    num_variables, width, num_actions = layout
-    owner, column = divmod(positions[0], width)
-    own, count = U64(columns[0]), U64(max(columns) + 1)
-    if owner == num_actions:  # the tables' row
-        set_table = _setter(model.StepTables, kernel.TABLES, num_variables, column)
-
-        @njit(**COMPILED, **INLINE)
-        def overlay(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
-            values = cells
-            return rest(effects, set_table(tables, values[0][U64(values[1][i]) * count + own]), action, cells, i)
-
-        return overlay
-    set_effect = _setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
-    shared = _getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
-
-    @njit(**COMPILED, **INLINE)
-    def overlay_action(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
-        values = cells
-        value = where(action == owner, values[0][U64(values[1][i]) * count + own], shared(effects))
-        return rest(set_effect(effects, value), tables, action, cells, i)
-
-    return overlay_action
+    return njit(**PER_POSITIONS, **INLINE)(namespace["set_number"])
 
 
 def _getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
@@ -153,9 +132,73 @@ def _getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variabl
     per_variable = len(fields.per_variable)
     if column < per_variable * num_variables:
         k, v = divmod(column, num_variables)
-        return njit(**COMPILED, **INLINE)(lambda values: values[k][v])
+        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
     j = per_variable + column - per_variable * num_variables
-    return njit(**COMPILED, **INLINE)(lambda values: values[j])
+    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[j])
+
+
+@functools.lru_cache(maxsize=256)
+def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[int, int, int]) -> Any:
+    """A compiled ``own(effects, tables, action, cells, i)``: ``(effects, tables)`` with env ``i``'s numbers at
+    ``positions`` (``positions[k]`` from row ``columns[k]`` of the cells, given as ``(data, row_length)``), an
+    action's only where it is ``action``. A chain of one function per position, each with its indices as
+    constants: nothing for LLVM to unroll. ``layout``: the numbers of variables, the row width, of actions."""
+    if not positions:
+        return njit(**PER_POSITIONS, **INLINE)(lambda effects, tables, action, cells, i: (effects, tables))
+    rest = _chain(positions[1:], columns[1:], layout)
+    num_variables, width, num_actions = layout
+    owner, column = divmod(positions[0], width)
+    row = U64(columns[0])
+    if owner == num_actions:  # the tables' row
+        set_table = _setter(model.StepTables, kernel.TABLES, num_variables, column)
+
+        @njit(**PER_POSITIONS, **INLINE)
+        def overlay_tables(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
+            value = cells[0][row * cells[1] + i]
+            return rest(effects, set_table(tables, value), action, cells, i)
+
+        return overlay_tables
+    set_effect = _setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+    shared = _getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+
+    @njit(**PER_POSITIONS, **INLINE)
+    def overlay_action(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
+        value = where(action == owner, cells[0][row * cells[1] + i], shared(effects))
+        return rest(set_effect(effects, value), tables, action, cells, i)
+
+    return overlay_action
+
+
+@functools.lru_cache(maxsize=64)
+def _chain_for(layout: Any, dtype: Any) -> Any:
+    """`_chain` for a ``layout`` and an overlay's ``dtype``: NumPy's and numba's (their types) alike."""
+    num_variables = len(layout[0])
+    positions, columns = _positions(dtype.fields.items())
+    return _chain(positions, columns, (num_variables, kernel.row_width(num_variables), len(layout[2])))
+
+
+def own(effects: Any, tables: Any, action: Any, cells: Any, i: Any, layout: Any, overlay: Any) -> Any:
+    """``(effects, tables)`` with env ``i``'s own numbers (`_chain`), as ``overlay`` places them. This is the
+    plain Python of ``NUMBA_DISABLE_JIT``; compiled code builds the chain from ``overlay``'s type (`_own`)."""
+    return _chain_for(layout, overlay.dtype)(effects, tables, action, cells, i)
+
+
+@overload(own, inline="always")
+def _own(effects: Any, tables: Any, action: Any, cells: Any, i: Any, layout: Any, overlay: Any) -> Any:
+    """`own` in compiled code: its chain built when compiling, from the types of ``layout`` and ``overlay``,
+    and inlined into the loop (compiled into the loop's own code, which numba's disk cache keeps)."""
+    chain = _chain_for(layout, overlay.dtype)
+
+    def own_compiled(effects: Any, tables: Any, action: Any, cells: Any, i: Any, layout: Any, overlay: Any) -> Any:
+        return chain(effects, tables, action, cells, i)
+
+    return own_compiled
+
+
+@njit(**JIT)
+def _fixed(values: Any, like: Any) -> Any:
+    """The first ``len(like)`` items of ``values`` as a tuple (a function of its own: see the kernel's)."""
+    return to_fixed_tuple(values[: len(like)], len(like))
 
 
 @njit(**JIT, **INLINE)
@@ -167,122 +210,83 @@ def _shape(layout: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def _stack_table(flat: Any, layout: Any, zeros: Any) -> Any:
-    """``flat`` (the packed tables, raveled) copied to the caller's stack, as the kernel's action table is:
-    LLVM vectorises reads only from memory no written array overlaps. On the heap when too large."""
-    rows = layout[2] + (None,)  # the action rows and the tables' row
-    size = len(rows) * _row_width(len(zeros))
-    if size <= kernel.STACK_TABLE_LIMIT:  # known when compiling: one branch stays
-        table = carray(kernel.stack_floats(rows, zeros), size)
-    else:
-        table = np.empty(size, dtype=np.float32)
-    for c in range(size):
-        table[c] = flat[c]
-    return table
+def _loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> None:
+    """The loop over envs of `step_envs`, which `step_one` runs over one env."""
+    kernel.wide_vectors()
+    _no_alias()
+    zeros, shape = _shape(layout)
+    width = U64(_row_width(len(zeros)))
+    shared = kernel.read_tables(flat, U64(len(layout[2])) * width, zeros, shape)
+    values = (_data(cells), U64(cells.shape[1]))
+    selected = len(layout[2]) <= kernel.SELECTED_ACTIONS  # known when compiling: one branch stays
+    for index in range(actions.shape[0]):
+        i = U64(index)
+        state = zeros
+        for v in range(len(zeros)):
+            state = tuple_setitem(state, v, envs[U64(v), i])
+        key_low, key_high = rng[U64(kernel.KEY_LOW), i], rng[U64(kernel.KEY_HIGH), i]
+        uniforms = draws(key_low, key_high, rng[U64(kernel.COUNTER), i], zeros)
+        if selected:
+            effects = kernel.chosen_effects((flat, width, layout[2], actions[i]), U64(0), zeros, ())
+        else:
+            effects = kernel.read_effects(flat, U64(actions[i]) * width, zeros, ())
+        effects, tables = own(effects, shared, actions[i], values, i, layout, overlay)
+        state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
+        for v in range(len(zeros)):
+            envs[U64(v), i] = stored(v, state[v])
+        rng[U64(kernel.COUNTER), i] = add32(rng[U64(kernel.COUNTER), i], U32(1))
+        results[0][i] = reward
+        results[1][i] = worked
+        results[2][i] = risk
+        results[3][i] = attack
+        results[4][i] = new_score
 
 
-if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _stack_table = lambda flat, layout, zeros: flat  # type: ignore[assignment]  # noqa: E731
+@njit(**JIT)
+def step_envs(
+    envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any
+) -> None:
+    """[`step_envs`][heartpole.kernel.step_envs] with each env's own numbers: ``flat`` the packed tables
+    raveled, ``cells`` and ``overlay`` as the module docstring says. No two of the arrays may overlap."""
+    _loop(envs, results, actions, rng, flat, layout, cells, overlay)
 
 
-class Kernels:
-    """The loops over envs for one set of positions (see the module docstring); made by `kernels`.
-
-    Attributes:
-        step_envs: ``step_envs(envs, results, actions, rng, flat, layout, cells)``: as
-            [`step_envs`][heartpole.kernel.step_envs] (``flat`` the packed tables raveled) with each env's
-            own numbers.
-        step_one: ``step_one(envs, action, rng, flat, layout, cells)``: as
-            [`step_one`][heartpole.kernel.step_one]; the same loop, so a single env is env 0 bit for bit.
-        reset_envs: ``reset_envs(envs, rng, which, flat, layout, cells)``: as
-            [`reset_envs`][heartpole.kernel.reset_envs], with each env's own waking alertness.
-    """
-
-    def __init__(
-        self, positions: tuple[int, ...], columns: tuple[int, ...], num_variables: int, num_actions: int
-    ) -> None:
-        own = _overlay(positions, columns, (num_variables, kernel.row_width(num_variables), num_actions))
-
-        @njit(**COMPILED, **INLINE)
-        def loop(
-            envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any
-        ) -> None:
-            kernel.wide_vectors()
-            zeros, shape = _shape(layout)
-            width = U64(_row_width(len(zeros)))
-            table = _stack_table(flat, layout, zeros)
-            shared = kernel.read_tables(table, U64(len(layout[2])) * width, zeros, shape)
-            values = (_data(people), _int_data(person))
-            selected = len(layout[2]) <= kernel.SELECTED_ACTIONS  # known when compiling: one branch stays
-            for index in range(actions.shape[0]):
-                i = U64(index)
-                state = zeros
-                for v in range(len(zeros)):
-                    state = tuple_setitem(state, v, envs[U64(v), i])
-                key_low, key_high = rng[U64(kernel.KEY_LOW), i], rng[U64(kernel.KEY_HIGH), i]
-                uniforms = draws(key_low, key_high, rng[U64(kernel.COUNTER), i], zeros)
-                if selected:
-                    effects = kernel.chosen_effects((table, width, layout[2], actions[i]), U64(0), zeros, ())
-                else:
-                    effects = kernel.read_effects(table, U64(actions[i]) * width, zeros, ())
-                effects, tables = own(effects, shared, actions[i], values, i)
-                state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
-                for v in range(len(zeros)):
-                    envs[U64(v), i] = stored(v, state[v])
-                rng[U64(kernel.COUNTER), i] = add32(rng[U64(kernel.COUNTER), i], U32(1))
-                results[0][i] = reward
-                results[1][i] = worked
-                results[2][i] = risk
-                results[3][i] = attack
-                results[4][i] = new_score
-
-        @njit(**COMPILED)
-        def step_envs(
-            envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any
-        ) -> None:
-            if people.size <= STACK_PEOPLE:  # two copies of the loop, each knowing where its table is
-                loop(envs, results, actions, rng, flat, layout, _stack_people(people), person)
-            else:
-                loop(envs, results, actions, rng, flat, layout, people, person)
-
-        @njit(**COMPILED)
-        def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any) -> Any:
-            one = kernel.one
-            results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
-            loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, people, person)
-            return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
-
-        @njit(**COMPILED)
-        def reset_envs(envs: Any, rng: Any, which: Any, flat: Any, layout: Any, people: Any, person: Any) -> None:
-            zeros, shape = _shape(layout)
-            tables_at = U64(len(layout[2])) * U64(_row_width(len(zeros)))
-            shared = kernel.read_tables(flat, tables_at, zeros, shape)
-            effects = kernel.read_effects(flat, U64(0), zeros, ())
-            values = (_data(people), _int_data(person))
-            wake = len(zeros)  # the wake-up uniform of a draw, as in a step
-            for index in range(which.shape[0]):
-                if which[index]:
-                    i = U64(index)
-                    tables = own(effects, shared, -1, values, i)[1]
-                    u = kernel.uniform(rng[kernel.KEY_LOW, i], rng[kernel.KEY_HIGH, i], rng[kernel.COUNTER, i], wake)
-                    state = _initial_state(zeros, u, tables)
-                    for v in range(len(zeros)):
-                        envs[v, i] = state[v]
-                    rng[kernel.COUNTER, i] = add32(rng[kernel.COUNTER, i], U32(1))
-
-        self.step_envs, self.reset_envs = step_envs, reset_envs
-        self._step_one = step_one
-
-    def step_one(self, envs: Any, action: Any, rng: Any, flat: Any, layout: Any, people: Any, person: Any) -> Any:
-        """One env's step (see the class docstring); its results as Python numbers, compiled or not."""
-        reward, worked, risk, attack, new_score = self._step_one(envs, action, rng, flat, layout, people, person)
-        return float(reward), float(worked), float(risk), bool(attack), float(new_score)
+@njit(**JIT)
+def _step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> Any:
+    """`step_one`'s compiled part: the loop over one env."""
+    one = kernel.one
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
+    _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay)
+    return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 
-@functools.lru_cache(maxsize=32)
-def kernels(positions: tuple[int, ...], columns: tuple[int, ...], num_variables: int, num_actions: int) -> Kernels:
-    """The loops for ``positions`` of a variant's packed tables (``num_variables`` and ``num_actions`` give their
-    layout), number ``positions[j]`` read from column ``columns[j]`` of the people's table (numbers equal for
-    every person share one: HeartPole's two fading variables fade alike), compiled on their first call, once
-    per process and set of positions."""
-    return Kernels(tuple(map(int, positions)), tuple(map(int, columns)), num_variables, num_actions)
+def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> Any:
+    """[`step_one`][heartpole.kernel.step_one] with the env's own numbers (``cells`` ``(columns, 1)``): the
+    loop of `step_envs`, so a single env is env 0 bit for bit; its results as Python numbers, compiled or not."""
+    reward, worked, risk, attack, new_score = _step_one(envs, action, rng, flat, layout, cells, overlay)
+    return float(reward), float(worked), float(risk), bool(attack), float(new_score)
+
+
+@njit(**JIT)
+def reset_envs(envs: Any, rng: Any, which: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> None:
+    """[`reset_envs`][heartpole.kernel.reset_envs] with each env's own waking alertness."""
+    zeros, shape = _shape(layout)
+    tables_at = U64(len(layout[2])) * U64(_row_width(len(zeros)))
+    shared = kernel.read_tables(flat, tables_at, zeros, shape)
+    effects = kernel.read_effects(flat, U64(0), zeros, ())
+    values = (_data(cells), U64(cells.shape[1]))
+    wake = len(zeros)  # the wake-up uniform of a draw, as in a step
+    for index in range(which.shape[0]):
+        if which[index]:
+            i = U64(index)
+            tables = own(effects, shared, -1, values, i, layout, overlay)[1]
+            u = kernel.uniform(rng[kernel.KEY_LOW, i], rng[kernel.KEY_HIGH, i], rng[kernel.COUNTER, i], wake)
+            state = _initial_state(zeros, u, tables)
+            for v in range(len(zeros)):
+                envs[v, i] = state[v]
+            rng[kernel.COUNTER, i] = add32(rng[kernel.COUNTER, i], U32(1))
+
+
+# They inline the kernel's and the model's code: an edit of either recompiles them.
+cache_keyed_on(model, step_envs, _step_one, reset_envs)
+cache_keyed_on(kernel, step_envs, _step_one, reset_envs)

@@ -29,7 +29,8 @@ class PersonTables:
         people: the population.
         flat: the kernel's ``flat`` table: the variant's packed numbers, raveled.
         positions: ``(k,)`` the numbers (indices into ``flat``) that differ between people.
-        kernels: the compiled loops for those positions ([`kernels`][heartpole.person_kernel.kernels]).
+        overlay: the loops' ``overlay`` for those positions ([`overlay_for`][heartpole.person_kernel.overlay_for]):
+            which row of the cells ([`cells`][heartpole.person_tables.PersonTables.cells]) each is read from.
     """
 
     def __init__(self, dynamics: Dynamics, people: People) -> None:
@@ -47,33 +48,26 @@ class PersonTables:
         if people.cohort:  # numbers equal for every member share a column (hypertension and alcohol fade alike)
             values = self._cohort[:, self.positions]
             _, first, columns = np.unique(values, axis=1, return_index=True, return_inverse=True)
-            self._unique = self.positions[first]
             columns = np.argsort(np.argsort(first))[columns.ravel()]
-        else:
-            self._unique = self.positions
-        self.kernels = person_kernel.kernels(
-            tuple(self.positions.tolist()), tuple(columns.tolist()), len(dynamics.variables), len(dynamics.actions)
-        )
+            # the members' numbers, a column of the cells per row: an env's are its member's column of these
+            self._members = np.ascontiguousarray(self._cohort[:, np.sort(self.positions[first])].T, dtype=np.float32)
+        self.overlay = person_kernel.overlay_for(self.positions.tolist(), columns.tolist())
 
-    def arrays(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """The kernel's ``people`` and ``person`` for ``n`` envs before any draw: the people's numbers at
-        `positions` (float32, a cohort's one row per member, a distribution's one row per env) and each env's
-        row of them (int32)."""
-        if self.people.cohort:
-            table = np.ascontiguousarray(self._cohort[:, np.sort(self._unique)], dtype=np.float32)
-            return table, np.zeros(n, dtype=np.int32)
-        return np.zeros((n, len(self.positions)), dtype=np.float32), np.arange(n, dtype=np.int32)
+    def cells(self, n: int) -> np.ndarray:
+        """The loops' ``cells`` for ``n`` envs before any draw (zeros): ``(columns, n)`` float32, row ``c`` each
+        env's value of the numbers the `overlay` reads from column ``c``."""
+        return np.zeros((self.overlay.dtype.itemsize // 4, n), dtype=np.float32)
 
-    def assign(self, people: np.ndarray, person: np.ndarray, which: np.ndarray, sample: Sample) -> None:
+    def assign(self, cells: np.ndarray, which: np.ndarray, sample: Sample) -> None:
         """Give the envs ``which`` (a mask, or indices) the people of ``sample`` (in env order), in place."""
         if self.people.cohort:
-            person[which] = sample.person
+            cells[:, which] = self._members[:, sample.person]
             return
         full = self._packed_many({c: sample.column(c, self.dynamics.params) for c in self.people.columns})
         shared = np.delete(full, self.positions, axis=1)
         if not np.array_equal(shared, np.broadcast_to(np.delete(self._base.ravel(), self.positions), shared.shape)):
             raise RuntimeError("a person changed a number no probe of the population changed")  # never, by design
-        people[person[which]] = full[:, self.positions]
+        cells[:, which] = full[:, self.positions].T
 
     # ----------------------------------------------------------------------------------------------------
     def _packed_one(self, params: Params) -> np.ndarray:

@@ -13,7 +13,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from heartpole import kernel
+from heartpole import kernel, person_kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.env import RESET_INFO, build_dynamics, check_render_mode, episode_length, observation_space
@@ -83,10 +83,11 @@ class HeartPoleVectorEnv(VectorEnv):
     ``people``, ``observe_traits`` and ``measurement`` are the single env's (see its "People and
     measurements"): each env draws its own person at ``reset`` and at every autoreset (all drawn at once from
     one generator spawned from ``self.np_random`` at each ``reset``), ``info["person"]`` ``(num_envs,)`` int64
-    and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 hold the current episodes' people (with
-    ``SAME_STEP``, ``final_info`` holds the ended ones'), and ``self.people`` the population. The step stays one
-    compiled loop (`heartpole.person_kernel`). With people, env 0 is still the single
-    env bit for bit; with a measurement, its noise differs after ``reset`` (drawn for all envs at once).
+    and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 (read-only: copy them to change them) hold
+    the current episodes' people (with ``SAME_STEP``, ``final_info`` holds the ended ones'), and
+    ``self.people`` the population. The step stays one compiled loop (`heartpole.person_kernel`). With
+    people, env 0 is still the single env bit for bit; with a measurement, its noise differs after ``reset``
+    (drawn for all envs at once).
 
     Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
     ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
@@ -147,12 +148,10 @@ class HeartPoleVectorEnv(VectorEnv):
         self._last_attacks = np.zeros(self.num_envs, dtype=bool)
         self._heart_attacks = np.zeros(self.num_envs, dtype=np.int64)
         # Each env's person: cohort index, traits and the kernel's numbers; the generators of people and noise.
-        self._person = np.full(self.num_envs, -1, dtype=np.int64)
+        self._person = _read_only(np.full(self.num_envs, -1, dtype=np.int64))
         self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
-        self._people: np.ndarray | None = None
-        self._person_row: np.ndarray | None = None
-        if self._persons is not None:
-            self._people, self._person_row = self._persons.arrays(self.num_envs)
+        self._traits = _read_only(self._traits)
+        self._cells = None if self._persons is None else self._persons.cells(self.num_envs)
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
 
@@ -238,9 +237,10 @@ class HeartPoleVectorEnv(VectorEnv):
         if stepped and self._persons is None:
             kernel.step_envs(self._envs, results, action, self._rng, self.dynamics.packed, self.dynamics.layout)
         elif stepped:
-            flat, layout = self._persons.flat, self.dynamics.layout  # type: ignore[union-attr]
-            people, row = self._people, self._person_row
-            self._persons.kernels.step_envs(self._envs, results, action, self._rng, flat, layout, people, row)  # type: ignore[union-attr]
+            flat, overlay = self._persons.flat, self._persons.overlay  # type: ignore[union-attr]
+            person_kernel.step_envs(
+                self._envs, results, action, self._rng, flat, self.dynamics.layout, self._cells, overlay
+            )
         reward, worked, risk, attack, new_score = results
         present = np.ones(n, dtype=bool)  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
@@ -259,7 +259,7 @@ class HeartPoleVectorEnv(VectorEnv):
         ended = None if self._clock < self._next_end else self._clock - self._starts >= self.max_steps
         if self._seen is not None:
             self._seen.step(self._envs.T, restart)
-        self._person_info(info)
+        self._person_info(info, present)
         obs, self._ended = self._observations(), None
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
@@ -269,7 +269,7 @@ class HeartPoleVectorEnv(VectorEnv):
             if self._seen is not None:
                 self._seen.reset(self._envs.T, ended)
             _write_reset_values(info, ended)
-            self._person_info(info)
+            self._person_info(info, present)
             obs, truncated = self._observations(), ended
         else:  # they restart on the next step (NEXT_STEP) or when the caller resets them (DISABLED)
             self._ended, truncated = ended, ended.copy()
@@ -309,17 +309,20 @@ class HeartPoleVectorEnv(VectorEnv):
         assert self.people is not None and self._persons is not None and self._people_rng is not None
         drawn = self.people.sample(self._people_rng, count)
         chosen = which if count == self.num_envs else slice(None)
-        self._person[which] = drawn.person[chosen]
-        self._traits[which] = drawn.traits()[chosen]
+        # new arrays, read-only and never written again: info hands them out as they are, with no copy per step
+        person, traits = self._person.copy(), self._traits.copy()
+        person[which], traits[which] = drawn.person[chosen], drawn.traits()[chosen]
+        self._person, self._traits = _read_only(person), _read_only(traits)
         taken = drawn if count == int(np.count_nonzero(which)) else _rows(drawn, which)
-        self._persons.assign(self._people, self._person_row, which, taken)  # type: ignore[arg-type]
+        self._persons.assign(self._cells, which, taken)  # type: ignore[arg-type]
 
-    def _person_info(self, info: dict[str, Any]) -> None:
-        """Put each env's current person (cohort index, -1 for a distribution) and traits into ``info``."""
+    def _person_info(self, info: dict[str, Any], present: np.ndarray | None = None) -> None:
+        """Put each env's current person (cohort index, -1 for a distribution) and traits into ``info``, with
+        ``present`` as their mask (a new one if not given)."""
         if self.people is not None:
-            present = np.ones(self.num_envs, dtype=bool)
-            info["person"], info["_person"] = self._person.copy(), present
-            info["traits"], info["_traits"] = self._traits.copy(), present
+            present = np.ones(self.num_envs, dtype=bool) if present is None else present
+            info["person"], info["_person"] = self._person, present
+            info["traits"], info["_traits"] = self._traits, present
 
     def _restart(self, which: np.ndarray, draw: bool = True) -> None:
         """Start the envs where ``which`` afresh, with new people if ``draw`` (autoreset); their random numbers
@@ -329,9 +332,8 @@ class HeartPoleVectorEnv(VectorEnv):
         else:
             if draw:
                 self._new_people(which, int(which.sum()))
-            flat, layout = self._persons.flat, self.dynamics.layout
-            people, row = self._people, self._person_row
-            self._persons.kernels.reset_envs(self._envs, self._rng, which, flat, layout, people, row)
+            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
+            person_kernel.reset_envs(self._envs, self._rng, which, flat, layout, self._cells, overlay)
         self._starts[which] = self._clock
         self._next_end = int(self._starts.min()) + self.max_steps
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
@@ -382,6 +384,12 @@ class HeartPoleVectorEnv(VectorEnv):
 def _rows(sample: Sample, which: np.ndarray) -> Sample:
     """The people of ``sample`` at the envs ``which`` (a full reset's draw, of which some envs take theirs)."""
     return Sample(sample.people, sample.person[which], sample.values[which])
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """``array``, made read-only (its owner replaces it rather than writes it: see ``_new_people``)."""
+    array.flags.writeable = False
+    return array
 
 
 def _write_reset_values(info: dict[str, Any], which: np.ndarray) -> None:
