@@ -49,10 +49,12 @@ Value = float | tuple[float, float]
 """A field's value: a number, or a ``(low, high)`` pair for ``wake_alertness``."""
 
 
+@functools.cache  # asked at every step of a single env with people (its traits)
 def _is_pair(field: str) -> bool:
     return isinstance(getattr(Params(), field), tuple)
 
 
+@functools.cache
 def _is_integer(field: str) -> bool:
     return isinstance(getattr(Params(), field), int)
 
@@ -216,14 +218,14 @@ class People:
             return POPULATIONS[people]()
         raise TypeError(f"people must be a People, one of {sorted(POPULATIONS)} or None, got {people!r}")
 
-    @property
+    @functools.cached_property
     def columns(self) -> tuple[str, ...]:
         """The columns of a sample: every field set, a pair field as two (see
         [`field_columns`][heartpole.people.field_columns])."""
         given = [f for f, _ in self.cohort[0].traits] if self.cohort else [f for f, _ in self.fields]
         return tuple(column for field in given for column in field_columns(field))
 
-    @property
+    @functools.cached_property
     def traits(self) -> tuple[str, ...]:
         """The columns that differ between people (a cohort's all, a distribution's uniform ones): what an
         env with ``observe_traits=True`` appends to the observation."""
