@@ -9,3 +9,14 @@ fi
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q torch==2.13.0
 .venv/bin/python -m pip install -q -e ".[all]"
+# Compile the steps once into numba's disk cache (beside the sources), as pip compiles .pyc files: test
+# workers and the first commands then load them instead of each compiling the same code (seconds each).
+.venv/bin/python -W ignore -c '
+import warnings, gymnasium as gym, heartpole
+warnings.simplefilter("ignore")  # after gymnasium, which sets its own filters: v0 is "out of date"
+for env_id in ("HeartPole-v0", "HeartPole-v1"):
+    for people in (None, "default"):
+        for env in (gym.make(env_id, people=people), gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", people=people)):
+            env.reset(seed=0)
+            env.step(env.action_space.sample())
+'

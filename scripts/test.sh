@@ -11,4 +11,5 @@ bash scripts/setup.sh
 if [ "$#" -eq 0 ]; then
   set -- -m "not slow"
 fi
-.venv/bin/python -m pytest -q "$@"
+# Two workers (the machine has 2 cores); the tests that start Ray share one (tests/conftest.py).
+.venv/bin/python -m pytest -q -n 2 --dist loadgroup "$@"
