@@ -40,6 +40,7 @@ ACTIONS = (
 )
 VARIANT = {"actions": ACTIONS, "variables": (*V0_VARIABLES, *EXTRA), "sleep_half_hours": 0}
 TINY = np.finfo(np.float32).tiny  # the smallest normal float32
+ONE_COMPILE = pytest.mark.xdist_group("variant")  # VARIANT's loops compile once, on one worker (seconds each)
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -157,6 +158,7 @@ def test_numbers_beyond_float32_are_refused_or_stay_finite(kwargs) -> None:
 # What held up (kept as regression tests)
 
 
+@ONE_COMPILE
 def test_the_variant_single_env_is_env_0_of_the_vector_env_bit_for_bit() -> None:
     """10 actions, 9 variables, rests of 3, a 0-half-hour sleep: env 0 of the vector env is the single env."""
     single = HeartPole(max_steps=200, **VARIANT)
@@ -174,6 +176,7 @@ def test_the_variant_single_env_is_env_0_of_the_vector_env_bit_for_bit() -> None
         assert obs[6] >= -1.0  # stress never below its low bound
 
 
+@ONE_COMPILE
 def test_invalid_actions_change_nothing_and_draw_nothing_in_a_variant() -> None:
     """Bad actions to either env leave the state and the generator's counter as they were."""
     single = HeartPole(**VARIANT)
@@ -193,6 +196,7 @@ def test_invalid_actions_change_nothing_and_draw_nothing_in_a_variant() -> None:
     assert np.array_equal(envs, vector._envs) and np.array_equal(rng, vector._rng)
 
 
+@ONE_COMPILE
 @pytest.mark.parametrize("max_steps", [1, 4])
 def test_same_step_final_obs_is_the_single_envs_last_observation(max_steps) -> None:
     """SAME_STEP: ``final_obs``/``final_info`` hold the ended episode's last step, bit for bit the single env's."""
@@ -209,6 +213,7 @@ def test_same_step_final_obs_is_the_single_envs_last_observation(max_steps) -> N
     assert not np.shares_memory(info["final_obs"][0], obs)
 
 
+@ONE_COMPILE
 def test_returned_arrays_do_not_alias_the_vector_envs_buffers() -> None:
     """Writing into everything a step returned leaves the env as it was."""
     env = HeartPoleVectorEnv(4, max_steps=2, autoreset_mode=AutoresetMode.SAME_STEP, **VARIANT)

@@ -48,7 +48,8 @@ def test_seeds_reproduce_and_differ(people: People | str) -> None:
     assert not np.array_equal(a[0][0], c[0][0])
 
 
-@pytest.mark.parametrize("people", POPULATIONS)
+# The distribution's loops are compiled for it alone (tens of seconds): a slow test. The cohort's are in the cache.
+@pytest.mark.parametrize("people", [POPULATIONS[0], pytest.param(UNIFORM, id="distribution", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("observe_traits", [False, True])
 def test_single_env_is_vector_env_zero_bit_for_bit(people: People | str, observe_traits: bool) -> None:
     single = HeartPole(people=people, observe_traits=observe_traits)

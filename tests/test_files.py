@@ -297,3 +297,68 @@ def test_a_library_error_without_a_signal_is_not_taken_for_one(monkeypatch: pyte
     monkeypatch.setattr(cli, "_run", fails)
     with pytest.raises(RuntimeError, match="a bug"):
         cli.main([])
+
+
+def test_an_error_a_signal_caused_in_a_command_is_the_signals(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A command's own error raised because a signal cut its work short (an import the signal broke: "plots
+    need matplotlib") ends as the signal does, not as a usage error with exit code 2."""
+    import argparse
+
+    import heartpole.cli as cli
+    from heartpole.cli.common import CommandError
+
+    def plot(args: argparse.Namespace) -> int:
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        except KeyboardInterrupt:
+            raise CommandError("plots need matplotlib") from None
+        return 0
+
+    parser = argparse.ArgumentParser()
+    parser.set_defaults(handler=plot, command="plot")
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    assert cli.main([]) == 128 + signal.SIGTERM
+    err = capsys.readouterr().err
+    assert "interrupted by SIGTERM" in err and "matplotlib" not in err
+
+
+CUT_AN_EXTENSION = """
+import _imp, os, signal, sys
+from heartpole import files
+
+cutting = []
+
+def cut(frame, event, arg):  # SIGTERM at the first Python call of matplotlib.ft2font's C initialisation
+    if event == "c_call" and arg is _imp.create_dynamic:
+        cutting.append(getattr((frame.f_locals.get("args") or (None,))[0], "name", "") == "matplotlib.ft2font")
+    elif event == "call" and any(cutting):
+        sys.setprofile(None)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+with files.signal_policy():
+    try:
+        sys.setprofile(cut)
+        import matplotlib.ft2font
+    except KeyboardInterrupt as interrupted:
+        print("interrupted by", interrupted, "cut:", any(cutting))
+    finally:
+        sys.setprofile(None)
+"""
+
+
+@needs_signals
+def test_a_signal_never_cuts_a_c_extensions_initialisation() -> None:
+    """A signal while a C extension initialises (pybind11's call back into Python) waits until it is made:
+    cut, matplotlib's ft2font failed with ``ImportError: initialization failed`` (``heartpole plot`` then said
+    matplotlib was missing) and the interpreter aborted at exit. The signal still ends the import."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("matplotlib")
+    result = subprocess.run([sys.executable, "-c", CUT_AN_EXTENSION], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "interrupted by SIGTERM cut: True", result.stdout + result.stderr
+    assert "Fatal Python error" not in result.stderr and "ImportError" not in result.stderr

@@ -35,6 +35,7 @@ print(json.dumps(sorted(f for f in functions if f.startswith("heartpole."))))
 """
 
 
+@pytest.mark.slow  # two fresh processes, the first compiling every loop of people='default' (tens of seconds)
 def test_a_second_process_loads_the_people_loops_from_the_disk_cache(tmp_path) -> None:
     """The loops of people="default" (vector env step and reset, single env step) are compiled by the first
     process that uses them and loaded from numba's disk cache by the next: it compiles nothing of HeartPole's.

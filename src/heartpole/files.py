@@ -16,7 +16,8 @@ and never costs what was there before:
 * [`signal_policy`][heartpole.files.signal_policy]: the ``heartpole`` command's handlers. SIGINT, SIGTERM and SIGHUP
   raise [`Interrupted`][heartpole.files.Interrupted] (a ``KeyboardInterrupt``) in the main thread, so ``finally`` blocks
   and context managers clean up, and the command exits with [`exit_code`][heartpole.files.exit_code]: 128 + the signal's
-  number.
+  number. A C extension's initialisation is never cut by them: it runs with signals deferred (an interrupted one
+  fails with ``ImportError`` and can crash the interpreter at exit; matplotlib's ``ft2font`` did).
 * [`signals_deferred`][heartpole.files.signals_deferred]: moves into place and cleanups run to their end; a signal that
   arrives meanwhile takes effect right after.
 
@@ -27,6 +28,8 @@ nothing from HeartPole.
 from __future__ import annotations
 
 import _thread
+import importlib.abc
+import importlib.machinery
 import json
 import os
 import shutil
@@ -35,7 +38,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from types import FrameType
 from typing import Any, TypeAlias
@@ -122,11 +125,52 @@ def signal_policy() -> Iterator[None]:
     _received.clear()
     hook = sys.unraisablehook
     sys.unraisablehook = _redeliver(hook)
+    finder = _WholeExtensions()
+    sys.meta_path.insert(0, finder)
     try:
         with _handlers(_raise):
             yield
     finally:
+        sys.meta_path.remove(finder)
         sys.unraisablehook = hook
+
+
+class _WholeExtensionLoader(importlib.machinery.ExtensionFileLoader):
+    """Python's loader of a C extension, initialising it with signals deferred: a signal handler that raises
+    while an extension's init calls back into Python (pybind11's do) leaves it half made, ``ImportError:
+    initialization failed``, and the interpreter may abort at exit ("Fatal Python error: PyThreadState_Get").
+    A signal that came meanwhile is delivered once the module is made and initialised."""
+
+    def create_module(self, spec: Any) -> Any:
+        self._deferred = ExitStack()  # closed by exec_module, which Python's import calls next
+        self._deferred.enter_context(signals_deferred())
+        with ExitStack() as on_error:
+            on_error.push(self._deferred)
+            module = super().create_module(spec)
+            on_error.pop_all()
+        return module
+
+    def exec_module(self, module: Any) -> None:
+        with self._deferred:
+            super().exec_module(module)
+
+
+class _WholeExtensions(importlib.abc.MetaPathFinder):
+    """A finder that finds nothing itself: it asks the finders after it and gives a C extension they find
+    `_WholeExtensionLoader`."""
+
+    def find_spec(self, name: str, path: Any, target: Any = None) -> Any:
+        for finder in sys.meta_path:
+            find = getattr(finder, "find_spec", None)
+            if finder is self or find is None:
+                continue
+            spec = find(name, path, target)
+            if spec is None:
+                continue
+            if type(spec.loader) is importlib.machinery.ExtensionFileLoader:
+                spec.loader = _WholeExtensionLoader(spec.loader.name, spec.loader.path)
+            return spec
+        return None
 
 
 def _redeliver(hook: Callable[[Any], object]) -> Callable[[Any], None]:

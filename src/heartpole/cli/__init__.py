@@ -93,6 +93,8 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
     try:
         return int(args.handler(args) or 0)
     except CommandError as error:
+        if files.received_signal() is not None:  # the signal's doing (an import it cut short): still a signal
+            raise files.interruption() from error
         print(f"heartpole {args.command}: error: {error}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
