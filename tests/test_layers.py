@@ -177,3 +177,20 @@ def test_the_private_name_check_sees_each_form(source: str) -> None:
 def test_the_private_name_check_lets_a_module_use_its_own_and_dunder_names() -> None:
     source = "import heartpole\nfrom heartpole import __version__\nheartpole.__version__\n_own = 1\n"
     assert private_uses("heartpole.records", ast.parse(source), set(heartpole_modules())) == []
+
+
+def test_the_readme_layout_lists_the_contracts_layers_in_order() -> None:
+    """README's Layout shows the layers of pyproject.toml's contract, top first, one line each (``a | b`` for a
+    layer of several modules): moving a module in the contract without the README fails here."""
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+
+    contract = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]["contracts"][0]
+    layers = [sorted(name.strip() for name in layer.split("|")) for layer in contract["layers"]]
+    readme = (ROOT / "README.md").read_text()
+    block = readme[readme.index("src/heartpole/   in layers") : readme.index("\ntests/ ")].splitlines()[2:]
+    shown = [  # a layer's line starts one space in; descriptions and a layer's members start further in
+        sorted(part.strip().split()[0].removesuffix(".py").removesuffix("/") for part in line.split("|"))
+        for line in block
+        if line.startswith(" ") and not line.startswith("  ")
+    ]
+    assert shown == [layer for layer in layers if layer != ["__main__"]]

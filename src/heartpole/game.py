@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, TextIO, cast
 
 import numpy as np
 
+from heartpole.rewards import expected_risk
+
 if TYPE_CHECKING:
     import gymnasium as gym
 
@@ -79,7 +81,7 @@ class Game:
     @property
     def expected_return(self) -> float:
         """The player's score minus the penalty times the heart-attack risk taken: the return without the luck."""
-        return self.score - self.penalty * self.risk_taken
+        return float(expected_risk(self.score, self.risk_taken, self.penalty))
 
     def choices(self) -> dict[str, int]:
         """How often each action was taken, in the order first taken."""

@@ -33,9 +33,9 @@ from numba.extending import intrinsic
 from numba.np.numpy_support import carray as _carray
 from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
-from heartpole import model
+from heartpole import jit, model
 from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
-from heartpole.jit import INLINE, JIT, cache_keyed_on
+from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
 
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
 # (float32 scalars, tuples of any length, arrays), which no single annotation describes. numba's stubs type an
@@ -364,29 +364,6 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _action_table = lambda packed, layout, zeros: np.ascontiguousarray(packed[:-1]).ravel()  # type: ignore[assignment]  # noqa: E731
 
 
-VECTOR_WIDTH = 512
-"""The vector width, in bits, LLVM may use for the loop over envs (``prefer-vector-width``). On CPUs with
-AVX-512 LLVM otherwise keeps to 256 bits; 512 made the v0 loop about a quarter faster on our Xeon. CPUs
-without AVX-512 ignore it. It is an attribute of the loop's own function, not a process-wide option."""
-
-
-@intrinsic
-def _wide_vectors_intrinsic(typingctx: Any) -> Any:
-    """Let LLVM vectorise the calling function `VECTOR_WIDTH` bits wide (no code of its own)."""
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        # llvmlite knows only LLVM's keyword attributes; a string attribute goes into the set as written
-        set.add(builder.function.attributes, f'"prefer-vector-width"="{VECTOR_WIDTH}"')
-        return context.get_dummy_value()
-
-    return nbtypes.none(), codegen
-
-
-wide_vectors: Any = _wide_vectors_intrinsic
-if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    wide_vectors = lambda: None  # noqa: E731
-
-
 SELECTED_ACTIONS = 4
 """Up to this many actions, the loop over envs selects each env's action effects with masks; with more, it
 reads them from the action table with gathers (the masks grow with the actions, and outgrow the registers).
@@ -397,33 +374,53 @@ with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
 # ---------------------------------------------------------------------------------------------------------
 # The loops over envs. Array indices are unsigned: numba then skips its negative-index wraparound, which
 # hides the addresses from LLVM's vectoriser. The single env is env 0 of a loop over one env: one compiled
-# definition, so the two agree bit for bit.
+# definition, so the two agree bit for bit. One env's turn in a loop is `env_state`, `action_effects`, the
+# step, `store_env` (heartpole.person_kernel's loop takes the same turn, with each env's own numbers).
+@njit(**JIT, **INLINE)
+def env_state(envs: Any, rng: Any, i: Any, zeros: Any) -> Any:
+    """``(state, uniforms)``: env ``i``'s state ``envs[:, i]`` as a tuple like ``zeros``, and its draw for this
+    step from its generator state ``rng[:, i]``."""
+    state = zeros
+    for v in range(len(zeros)):
+        state = tuple_setitem(state, v, envs[U64(v), i])
+    return state, draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
+
+
+@njit(**JIT, **INLINE)
+def action_effects(table: Any, width: Any, layout: Any, action: Any, zeros: Any) -> Any:
+    """The effects of ``action`` from the action rows at the start of ``table`` (rows of ``width``): selected
+    with masks up to `SELECTED_ACTIONS` actions, gathered beyond (known when compiling: one branch stays)."""
+    if len(layout[2]) <= SELECTED_ACTIONS:
+        return chosen_effects((table, width, layout[2], action), U64(0), zeros, ())
+    return read_effects(table, U64(action) * width, zeros, ())
+
+
+@njit(**JIT, **INLINE)
+def store_env(envs: Any, results: Any, rng: Any, i: Any, outcome: Any) -> None:
+    """Env ``i``'s step ``outcome`` (the model's step's tuple) into place: its new state into ``envs[:, i]``,
+    its draw counted in ``rng``, its results into ``results[k][i]``."""
+    state, reward, worked, risk, attack, new_score = outcome
+    for v in range(len(state)):
+        envs[U64(v), i] = stored(v, state[v])
+    rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
+    results[0][i] = reward
+    results[1][i] = worked
+    results[2][i] = risk
+    results[3][i] = attack
+    results[4][i] = new_score
+
+
 @njit(**JIT, **INLINE)
 def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     wide_vectors()
     zeros, tables = _unpack(packed, layout)
     table, width = _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
-    selected = len(layout[2]) <= SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
-        state = zeros
-        for v in range(len(zeros)):
-            state = tuple_setitem(state, v, envs[U64(v), i])
-        uniforms = draws(rng[U64(KEY_LOW), i], rng[U64(KEY_HIGH), i], rng[U64(COUNTER), i], zeros)
-        if selected:
-            effects = chosen_effects((table, width, layout[2], actions[i]), U64(0), zeros, ())
-        else:
-            effects = read_effects(table, U64(actions[i]) * width, zeros, ())
-        state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
-        for v in range(len(zeros)):
-            envs[U64(v), i] = stored(v, state[v])
-        rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
-        results[0][i] = reward
-        results[1][i] = worked
-        results[2][i] = risk
-        results[3][i] = attack
-        results[4][i] = new_score
+        state, uniforms = env_state(envs, rng, i, zeros)
+        effects = action_effects(table, width, layout, actions[i], zeros)
+        store_env(envs, results, rng, i, _step(state, effects, uniforms, tables))
 
 
 @njit(**JIT)
@@ -436,32 +433,6 @@ def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layo
     ``packed`` and ``layout`` are [`pack`][heartpole.kernel.pack]'s and [`layout`][heartpole.kernel.layout]'s.
     """
     _step_envs(envs, results, actions, rng, packed, layout)
-
-
-@intrinsic
-def _on_the_stack_intrinsic(typingctx: Any, value: Any) -> Any:
-    """A pointer to room for one ``value`` on the stack of the compiled function that calls it."""
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return alloca_once(builder, context.get_data_type(value))
-
-    pointer: Any = nbtypes.CPointer
-    return pointer(value)(value), codegen
-
-
-_on_the_stack: Any = _on_the_stack_intrinsic
-
-
-@njit(**JIT, **INLINE)
-def one(value: Any) -> Any:
-    """A one-item array holding ``value``, on the caller's stack (no allocation)."""
-    array = carray(_on_the_stack(value), 1)
-    array[0] = value
-    return array
-
-
-if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
 
 
 @njit(**JIT)
@@ -488,7 +459,9 @@ def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> Non
             rng[COUNTER, i] = add32(rng[COUNTER, i], U32(1))
 
 
-cache_keyed_on(model, step_envs, step_one, reset_envs)  # they inline model's step: its edits recompile them
+# They inline model's step and jit's tools: an edit of either recompiles them.
+cache_keyed_on(model, step_envs, step_one, reset_envs)
+cache_keyed_on(jit, step_envs, step_one, reset_envs)
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one

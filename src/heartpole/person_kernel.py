@@ -34,9 +34,9 @@ from numba.core import types as nbtypes
 from numba.core.errors import TypingError
 from numba.extending import intrinsic, overload
 
-from heartpole import kernel, model
-from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on
-from heartpole.kernel import F32, U32, U64, add32, draws, stored, to_fixed_tuple, tuple_setitem, where
+from heartpole import jit, kernel, model
+from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on, one, wide_vectors
+from heartpole.kernel import F32, U32, U64, add32, to_fixed_tuple, tuple_setitem, where
 
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
 _step, _initial_state = kernel.compiled.step, kernel.compiled.initial_state
@@ -212,34 +212,18 @@ def _shape(layout: Any) -> Any:
 @njit(**JIT, **INLINE)
 def _loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
-    kernel.wide_vectors()
+    wide_vectors()
     _no_alias()
     zeros, shape = _shape(layout)
     width = U64(_row_width(len(zeros)))
     shared = kernel.read_tables(flat, U64(len(layout[2])) * width, zeros, shape)
     values = (_data(cells), U64(cells.shape[1]))
-    selected = len(layout[2]) <= kernel.SELECTED_ACTIONS  # known when compiling: one branch stays
     for index in range(actions.shape[0]):
         i = U64(index)
-        state = zeros
-        for v in range(len(zeros)):
-            state = tuple_setitem(state, v, envs[U64(v), i])
-        key_low, key_high = rng[U64(kernel.KEY_LOW), i], rng[U64(kernel.KEY_HIGH), i]
-        uniforms = draws(key_low, key_high, rng[U64(kernel.COUNTER), i], zeros)
-        if selected:
-            effects = kernel.chosen_effects((flat, width, layout[2], actions[i]), U64(0), zeros, ())
-        else:
-            effects = kernel.read_effects(flat, U64(actions[i]) * width, zeros, ())
+        state, uniforms = kernel.env_state(envs, rng, i, zeros)
+        effects = kernel.action_effects(flat, width, layout, actions[i], zeros)
         effects, tables = own(effects, shared, actions[i], values, i, layout, overlay)
-        state, reward, worked, risk, attack, new_score = _step(state, effects, uniforms, tables)
-        for v in range(len(zeros)):
-            envs[U64(v), i] = stored(v, state[v])
-        rng[U64(kernel.COUNTER), i] = add32(rng[U64(kernel.COUNTER), i], U32(1))
-        results[0][i] = reward
-        results[1][i] = worked
-        results[2][i] = risk
-        results[3][i] = attack
-        results[4][i] = new_score
+        kernel.store_env(envs, results, rng, i, _step(state, effects, uniforms, tables))
 
 
 @njit(**JIT)
@@ -254,7 +238,6 @@ def step_envs(
 @njit(**JIT)
 def _step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> Any:
     """`step_one`'s compiled part: the loop over one env."""
-    one = kernel.one
     results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
     _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
@@ -287,6 +270,6 @@ def reset_envs(envs: Any, rng: Any, which: Any, flat: Any, layout: Any, cells: A
             rng[kernel.COUNTER, i] = add32(rng[kernel.COUNTER, i], U32(1))
 
 
-# They inline the kernel's and the model's code: an edit of either recompiles them.
-cache_keyed_on(model, step_envs, _step_one, reset_envs)
-cache_keyed_on(kernel, step_envs, _step_one, reset_envs)
+# They inline the kernel's, the model's and jit's code: an edit of any recompiles them.
+for _source in (model, kernel, jit):
+    cache_keyed_on(_source, step_envs, _step_one, reset_envs)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any, TypeAlias
 
-from heartpole.model import heart_attack_risk
+from heartpole.model import Params, heart_attack_risk
 
 Array: TypeAlias = Any
 """A float, a NumPy array or a ``jax.numpy`` array: anything with arithmetic operators."""
@@ -38,6 +38,12 @@ def expected_risk(value: Array, risk: Array, penalty: Array, baseline: Array = 0
 def risk_floor(proclivity: float) -> float:
     """The heart-attack risk at zero blood pressure: the least any step can carry."""
     return float(heart_attack_risk(0.0, proclivity))
+
+
+def least_heart_attacks(params: Params) -> float:
+    """The expected heart attacks of an episode of ``params.max_steps`` steps at the risk floor: what a policy
+    that never drinks pays (blood pressure stays 0), and no policy pays less."""
+    return params.max_steps * risk_floor(params.heart_attack_proclivity)
 
 
 def training_reward(

@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from heartpole.model import Params, heart_attack_risk
+from heartpole.model import Params
+from heartpole.rewards import least_heart_attacks
 
 SOLVED_REGRET = 0.01
 """The "solved" bar as a regret: the upper end of the 95% regret interval over 2,000 evaluation episodes at
@@ -72,8 +73,7 @@ def solved_bar(params: Params, best_rate: float | None) -> SolvedBar:
     """The solved bar of an env with ``params`` and the best known long-run score ``best_rate`` (``None``:
     unknown): v0's issue-3 bar (<= 1.30 heart attacks, score >= 0.30) carried over to any variant by the same
     proportions."""
-    floor = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
-    attacks = round(SOLVED_ATTACKS_ABOVE_FLOOR * floor, 2)
+    attacks = round(SOLVED_ATTACKS_ABOVE_FLOOR * least_heart_attacks(params), 2)
     score = None if best_rate is None else round(SOLVED_SHARE_OF_BEST_SCORE * best_rate, 2)
     return bar(attacks, score, params.heart_attack_penalty)
 

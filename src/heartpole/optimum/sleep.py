@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from heartpole.model import Params, alertness_decay, heart_attack_risk, productivity
+from heartpole.model import Params, alertness_decay, productivity
+from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, NotCoveredError, Settling, max_awake
 from .days import DayKernels, episode_outcome
@@ -212,8 +213,7 @@ def sleep_rule_value(
     """
     model = _DayModel(params, grid)
     outcome = episode_outcome(model.follow(sleeps), model.steps, model.sleep_time)
-    attacks = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
-    return outcome.score - params.heart_attack_penalty * attacks
+    return float(expected_risk(outcome.score, least_heart_attacks(params), params.heart_attack_penalty))
 
 
 def _initial_rate(model: _DayModel) -> float:

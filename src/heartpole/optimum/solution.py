@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heartpole import files
-from heartpole.model import Params, check_integer, heart_attack_risk
+from heartpole.model import Params, check_integer
+from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
 from .drinks import check_beer, check_coffee, check_covered, drink_floor
@@ -189,7 +190,7 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
     fine = solve_params(params, grid)
     coffee = check_coffee(params, fine.rate)
     coarse = solve_params(params, grid // 2)
-    attacks = params.max_steps * float(heart_attack_risk(0.0, params.heart_attack_proclivity))
+    attacks = least_heart_attacks(params)
     return OptimumSolution(
         env_id=env_id,
         env_kwargs=env_kwargs,
@@ -198,7 +199,7 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
         rate=fine.rate,
         expected_score=fine.expected_score,
         expected_heart_attacks=attacks,
-        expected_return=fine.expected_score - params.heart_attack_penalty * attacks,
+        expected_return=expected_risk(fine.expected_score, attacks, params.heart_attack_penalty),
         error_bound=abs(fine.expected_score - coarse.expected_score),
         expected_sleeps=fine.expected_sleeps,
         drink_floor=drink_floor(params),

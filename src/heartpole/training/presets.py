@@ -13,7 +13,7 @@ from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.model import check_integer
+from heartpole.model import check_integer, is_number
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
@@ -259,8 +259,7 @@ def shaped_reward_rate(
     if score_rate == "best":
         best = best_known_rate(env_dynamics(env_id, env_kwargs))
         return "auto" if best is None else round(RATE_SHARE_OF_BEST * best, 2)
-    number = isinstance(score_rate, (int, float)) and not isinstance(score_rate, bool) and math.isfinite(score_rate)
-    if not number:
+    if not (is_number(score_rate) and math.isfinite(score_rate)):
         raise ValueError(f"score_rate must be 'best', 'auto' or a finite number, got {score_rate!r}")
     return float(score_rate)
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
+from heartpole.model import check_number, is_number
 
 # ------------------------------------------------------------------------------------------------------
 # the training reward
@@ -36,13 +37,10 @@ class TrainingReward:
 
     def __post_init__(self) -> None:
         rate = self.score_rate
-        number = isinstance(rate, (int, float)) and not isinstance(rate, bool) and math.isfinite(rate)
-        if rate is not None and rate != "auto" and not number:
+        if rate is not None and rate != "auto" and not (is_number(rate) and math.isfinite(rate)):
             raise ValueError(f"score_rate must be a finite number, 'auto' or None, got {rate!r}")
-        if not (math.isfinite(self.rate_window) and self.rate_window >= 1):
-            raise ValueError(f"rate_window must be a number >= 1, got {self.rate_window!r}")
-        if not (math.isfinite(self.horizon) and self.horizon > 0):
-            raise ValueError(f"horizon must be a positive number, got {self.horizon!r}")
+        check_number("rate_window", self.rate_window, 1.0)
+        check_number("horizon", self.horizon, 0.0, low_open=True)
 
     @property
     def is_env_reward(self) -> bool:
