@@ -289,10 +289,11 @@ def test_observe_traits_appends_them_to_the_observation_and_its_space() -> None:
 
 
 def test_bad_input_is_refused_with_what_is_accepted() -> None:
-    with pytest.raises(ValueError, match="observe_traits=True needs people"):
+    with pytest.raises(ValueError, match="observe_traits=True needs a population"):
         make("HeartPole-v0", observe_traits=True)
-    with pytest.raises(ValueError, match="observe_traits must be True or False"):
+    with pytest.raises(TypeError, match="observe_traits must be True or False"):  # as the NumPy envs say
         make("HeartPole-v0", people="default", observe_traits="yes")
+    make("HeartPole-v0", people="default", observe_traits=np.True_)  # NumPy's bool is a bool, as there
     with pytest.raises(ValueError, match=r"unknown population 'everyone'.*\['default'\]"):
         make("HeartPole-v0", people="everyone")
     with pytest.raises(TypeError, match="people must be a People"):

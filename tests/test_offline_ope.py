@@ -124,3 +124,10 @@ def test_off_policy_estimates_match_the_truth_on_a_short_heartpole():
     pdis_se = (estimates["PDIS"].ci95[1] - estimates["PDIS"].ci95[0]) / (2 * 1.96)
     assert abs(estimates["WPDIS"].value - truth.value) < 4 * math.hypot(pdis_se, truth_se)
     assert abs(estimates["FQE"].value - truth.value) < 0.25 * abs(truth.value)  # a linear model: close, biased
+
+
+@pytest.mark.parametrize("epsilon", [True, "0.5", -0.1, 1.5, float("nan")])
+def test_a_behaviour_epsilon_must_be_a_number_in_0_1(epsilon: object) -> None:
+    """The rule for a number (not a bool, not a string: ``float("0.5")`` would have let one through)."""
+    with pytest.raises(ValueError, match=r"epsilon must be a finite number in \[0.0, 1.0\], got"):
+        EpsilonGreedy(ExpertPolicy(), epsilon, 4)

@@ -19,7 +19,7 @@ from gymnasium import spaces
 from heartpole.dynamics import Dynamics
 from heartpole.measurement import Measurement, Sensor
 from heartpole.model import TIME_ELAPSED
-from heartpole.people import People
+from heartpole.people import People, check_observe_traits
 
 LARGEST = float(np.finfo(np.float32).max)
 
@@ -41,10 +41,7 @@ class Observer:
 
     def __init__(self, dynamics: Dynamics, people: Any, observe_traits: Any, measurement: Any) -> None:
         self.people = People.resolve(people)
-        if not isinstance(observe_traits, (bool, np.bool_)):
-            raise TypeError(f"observe_traits must be True or False, got {observe_traits!r}")
-        if observe_traits and self.people is None:
-            raise ValueError("observe_traits=True needs a population: pass people= (e.g. people='default')")
+        observe_traits = check_observe_traits(observe_traits, self.people)
         if measurement is not None and not isinstance(measurement, Measurement):
             raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
         self.observe_traits = bool(observe_traits)

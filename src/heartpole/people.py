@@ -38,7 +38,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from heartpole.model import Params, check_keywords, check_number, check_pair
+from heartpole.model import Params, check_integer, check_keywords, check_number, check_pair
 
 TASK_FIELDS = ("max_steps", "heart_attack_penalty")
 """The fields of [`Params`][heartpole.model.Params] that belong to the task, not to a person."""
@@ -252,8 +252,7 @@ class People:
         draws what env 0 of a vector env draws) and maps column ``j`` to ``low + (high - low) * u`` (an
         integer field: ``low + floor((high - low + 1) * u)``, both ends included); a fixed one draws nothing.
         """
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-            raise ValueError(f"n must be an integer >= 0, got {n!r}")
+        n = check_integer("n", n, 0)
         if self.cohort:
             person = rng.integers(0, len(self.cohort), size=int(n))
             return Sample(self, person, self._table[person])
@@ -461,3 +460,13 @@ def _default() -> People:
 
 POPULATIONS: Mapping[str, Callable[[], People]] = {"default": _default}
 """The named populations [`People.resolve`][heartpole.people.People.resolve] knows."""
+
+
+def check_observe_traits(observe_traits: Any, people: People | None) -> bool:
+    """``observe_traits`` as a bool: ``TypeError`` unless it is one (NumPy's too), ``ValueError`` if it is true
+    without a population (``people``) whose traits to observe. The one rule of every env, NumPy's and JAX's."""
+    if not isinstance(observe_traits, (bool, np.bool_)):
+        raise TypeError(f"observe_traits must be True or False, got {observe_traits!r}")
+    if observe_traits and people is None:
+        raise ValueError("observe_traits=True needs a population: pass people= (e.g. people='default')")
+    return bool(observe_traits)

@@ -26,7 +26,7 @@ from heartpole.jax.population import Population
 from heartpole.jax.spaces import Box, Discrete
 from heartpole.measurement import Measurement, Sensor
 from heartpole.model import TIME_ELAPSED, ActionEffects, StepTables, TableFields, table_fields
-from heartpole.people import People, Sample
+from heartpole.people import People, Sample, check_observe_traits
 
 MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.replace})
 """[`heartpole.model`][heartpole.model]'s functions with their own code objects, run on ``jax.numpy``."""
@@ -144,9 +144,8 @@ class HeartPoleJax:
             reading (``state.seen``, ``state.age``). Its noise comes from a key folded off the step's key.
 
     Raises:
-        ValueError: an unknown population name, ``observe_traits`` not a bool, or ``observe_traits=True``
-            without people.
-        TypeError: ``people`` or ``measurement`` of another type.
+        ValueError: an unknown population name, or ``observe_traits=True`` without people.
+        TypeError: ``people``, ``observe_traits`` or ``measurement`` of another type.
     """
 
     def __init__(
@@ -158,11 +157,7 @@ class HeartPoleJax:
     ) -> None:
         self.dynamics = Dynamics() if dynamics is None else dynamics
         self.people = People.resolve(people)
-        if not isinstance(observe_traits, bool):
-            raise ValueError(f"observe_traits must be True or False, got {observe_traits!r}")
-        if observe_traits and self.people is None:
-            raise ValueError("observe_traits=True needs people (a population whose traits to observe), got None")
-        self.observe_traits = observe_traits
+        self.observe_traits = check_observe_traits(observe_traits, self.people)
         self.population = None if self.people is None else Population(self.people, self.dynamics)
         if measurement is not None and not isinstance(measurement, Measurement):
             raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from heartpole.model import check_number
 from heartpole.policies import Policy, RandomPolicy, policy_name
 from heartpole.rollout import check_actions as check_actions
 
@@ -143,11 +144,5 @@ class Mixture:
 
 
 def check_epsilon(epsilon: Any) -> float:
-    """``epsilon`` as a float in [0, 1], or ``ValueError``."""
-    try:
-        value = float(epsilon)
-    except (TypeError, ValueError):
-        raise ValueError(f"epsilon must be a number in [0, 1], got {epsilon!r}") from None
-    if not 0.0 <= value <= 1.0:
-        raise ValueError(f"epsilon must be a number in [0, 1], got {epsilon!r}")
-    return value
+    """``epsilon`` as a float in [0, 1], or ``ValueError`` (a bool or a string is no number)."""
+    return check_number("epsilon", epsilon, 0.0, 1.0)

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from heartpole.model import check_integer
 from heartpole.people import People
 from heartpole.stats import confidence_interval
 
@@ -208,8 +209,7 @@ def solve_people(
             f"each person's optimum needs a finite cohort (People(cohort=...) or 'default'), got {people!r}"
         )
     workers = min(2, os.cpu_count() or 1) if processes is None else processes
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
+    workers = check_integer("processes", workers, 1)
     base = split_people(env_kwargs)[1]  # the env's own population, if any, is not a parameter
     kwargs = [{**base, **person.values()} for person in cohort.cohort]
     jobs: dict[tuple[tuple[str, Any], ...], tuple[str, dict[str, Any]]] = {}
