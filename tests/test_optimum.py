@@ -409,3 +409,23 @@ def test_within_widens_the_interval_by_the_grid_error(v0: OptimumSolution) -> No
     assert v0.within((value + bound / 2, value + 1.0))  # just above the interval's low end, inside the bound
     assert not v0.within((value + 2 * bound + 1e-9, value + 1.0))
     assert not v0.within((value - 1.0, value - 2 * bound - 1e-9))
+
+
+def test_a_parameter_the_solvers_do_not_model_is_refused_away_from_its_default() -> None:
+    """A field added to Params reaches the envs by itself, not the solvers: its default (the tutorial's
+    dynamics) is solved, another value refused by name rather than solved as if it were not there."""
+    import dataclasses
+    import types
+
+    from heartpole.optimum.common import unmodelled
+    from heartpole.optimum.drinks import check_covered
+    from heartpole.registry import env_dynamics
+
+    extended = dataclasses.make_dataclass("Extended", [("work_scale", float, 1.0)], bases=(Params,), frozen=True)
+    assert unmodelled(extended()) == {} and unmodelled(Params(decay_rate=0.9, max_steps=20)) == {}
+    assert unmodelled(extended(work_scale=2.0)) == {"work_scale": 2.0}
+    v0 = env_dynamics("HeartPole-v0")
+    check_covered("HeartPole-v0", types.SimpleNamespace(params=extended(), variables=v0.variables, actions=v0.actions))
+    changed = types.SimpleNamespace(params=extended(work_scale=2.0), variables=v0.variables, actions=v0.actions)
+    with pytest.raises(NotCoveredError, match=r"sets \{'work_scale': 2.0\}; the optimum's solvers model"):
+        check_covered("HeartPole-v0", changed)

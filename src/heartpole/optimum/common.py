@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import MISSING, asdict, fields
 from typing import Any
 
 import numpy as np
@@ -21,6 +21,23 @@ much (relative to their size, plus this much absolute) per decision; see
 
 class NotCoveredError(ValueError):
     """The variant is outside what the dynamic program solves (extra actions or variables, drinks that may pay)."""
+
+
+SOLVED_PARAMS = frozenset(
+    {"heart_attack_proclivity", "max_steps", "decay_rate", "sleep_half_hours", "heart_attack_penalty", "wake_alertness"}
+)
+"""The fields of [`Params`][heartpole.model.Params] the solvers model. A field added to ``Params`` later reaches
+every env backend by itself (model.py and dynamics.py), but not the solvers: its default (the tutorial's
+dynamics, which the solvers already are) is covered, any other value refused (`unmodelled`)."""
+
+
+def unmodelled(params: Params) -> dict[str, Any]:
+    """The fields of ``params`` outside `SOLVED_PARAMS` that differ from their defaults: what no solver models."""
+    return {
+        f.name: getattr(params, f.name)
+        for f in fields(params)
+        if f.name not in SOLVED_PARAMS and (f.default is MISSING or getattr(params, f.name) != f.default)
+    }
 
 
 def peak_productivity() -> float:

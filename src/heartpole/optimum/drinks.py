@@ -10,7 +10,7 @@ import numpy as np
 from heartpole.actions import V0_ACTIONS
 from heartpole.model import V0_VARIABLES, Params, alertness_decay, ballmer, heart_attack_risk, productivity
 
-from .common import NotCoveredError, Settling, max_awake, peak_productivity
+from .common import SOLVED_PARAMS, NotCoveredError, Settling, max_awake, peak_productivity, unmodelled
 from .sleep import solve_params
 
 if TYPE_CHECKING:
@@ -158,11 +158,18 @@ def coffee_check(params: Params, rate: float, charge: float, step: float = 0.01)
 
 
 def check_covered(env_id: str, dynamics: Dynamics) -> None:
-    """Refuse dynamics other than v0's six variables and four actions (in any order).
+    """Refuse dynamics other than v0's six variables and four actions (in any order), and parameters the
+    solvers do not model set away from their defaults ([`unmodelled`][heartpole.optimum.common.unmodelled]).
 
     Raises:
-        NotCoveredError: naming the variables or actions that differ.
+        NotCoveredError: naming the variables, actions or parameters that differ.
     """
+    unknown = unmodelled(dynamics.params)
+    if unknown:
+        raise NotCoveredError(
+            f"{env_id} sets {unknown}; the optimum's solvers model the parameters {sorted(SOLVED_PARAMS)} and "
+            "take any other at its default only"
+        )
     names = [v.name for v in dynamics.variables]
     if tuple(dynamics.variables) != V0_VARIABLES:
         raise NotCoveredError(
