@@ -62,3 +62,10 @@ def test_the_sb3_callback_draws_with_the_same_bar(capsys: pytest.CaptureFixture[
     callback._on_training_end()
     err = capsys.readouterr().err
     assert "training ppo seed 0 [" in err and "100.0%" in err and "step/s" in err and err.endswith("\n")
+
+
+def test_clear_wipes_the_line_only_when_the_bar_shows() -> None:
+    shown, hidden = io.StringIO(), io.StringIO()
+    Progress(10, "work", stream=shown, enabled=True).clear()
+    Progress(10, "work", stream=hidden, enabled=False).clear()
+    assert shown.getvalue() == "\r\x1b[K" and hidden.getvalue() == ""

@@ -333,9 +333,15 @@ def write_text(path: PathLike, text: str) -> Path:
     return atomic_write(path, lambda temporary: temporary.write_text(text))
 
 
+def json_text(data: object) -> str:
+    """``data`` as the JSON every HeartPole file holds: indented, a final newline, no NaN or infinity
+    (``ValueError``: strict JSON readers refuse them)."""
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
 def write_json(path: PathLike, data: object) -> Path:
-    """Write ``data`` to ``path`` atomically as indented JSON (no NaN or infinity: ``ValueError``)."""
-    return write_text(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
+    """Write ``data`` to ``path`` atomically as [`json_text`][heartpole.files.json_text]."""
+    return write_text(path, json_text(data))
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -448,6 +454,7 @@ __all__ = [
     "exit_code",
     "folder_in_place",
     "interruption",
+    "json_text",
     "received_signal",
     "replace_folder",
     "scratch_folder",

@@ -65,6 +65,12 @@ class Progress:
         self.stream.write(f"\r{self.description} [{bar}] {100 * share:5.1f}% {elapsed:6.1f}s (eta {eta:5.1f}s){rate}")
         self.stream.flush()
 
+    def clear(self) -> None:
+        """Wipe the bar's line, for a line printed in between (the next update draws the bar again)."""
+        if self.enabled:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+
     def close(self) -> None:
         """End the bar's line."""
         if self.enabled:

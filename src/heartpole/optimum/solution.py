@@ -123,7 +123,7 @@ class OptimumSolution:
         with files.atomic_files(directory / "optimum.npz", directory / "optimum.json") as (npz, summary):
             with npz.open("wb") as handle:
                 np.savez_compressed(handle, thresholds=self.thresholds)
-            summary.write_text(json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
+            summary.write_text(files.json_text(self.summary()))
         return directory
 
     @classmethod

@@ -129,8 +129,7 @@ class TrialsBar(tune.Callback):
         """A trial finished: pass its result on, redraw."""
         result = dict(trial.last_result or {})
         if self.on_result is not None and result:
-            if self.bar.enabled:  # clear the bar's line for whatever on_result prints
-                self.bar.stream.write("\r\x1b[K")
+            self.bar.clear()  # for whatever on_result prints
             self.on_result(result)
         self._redraw(trials, trial, failed=False)
 
