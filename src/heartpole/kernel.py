@@ -233,13 +233,27 @@ def pack_row(table: tuple[Any, ...], fields: model.TableFields) -> list[Any]:
     ]
 
 
+def field_at(fields: model.TableFields, num_variables: int, column: int) -> tuple[int, int | None]:
+    """Where number ``column`` of a packed row (`pack_row`) lives in its table: ``(field, variable)`` for a
+    PerVariable field, ``(field, None)`` for a Number (``field`` its index among the table's fields)."""
+    per_variable = len(fields.per_variable)
+    if column < per_variable * num_variables:
+        return divmod(column, num_variables)
+    return per_variable + column - per_variable * num_variables, None
+
+
+def padded_rows(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> list[list[Any]]:
+    """[`pack`][heartpole.kernel.pack]'s rows before they become an array: numbers of any type (arrays too)."""
+    width = row_width(len(tables.floor))
+    rows = [pack_row(e, EFFECTS) for e in effects] + [pack_row(tables, TABLES)]
+    return [row + [0.0] * (width - len(row)) for row in rows]
+
+
 def pack(effects: Sequence[model.ActionEffects], tables: model.StepTables) -> np.ndarray:
     """``effects`` and ``tables`` as one float32 array of `row_width` columns: a row per action (`EFFECTS`),
     then a row for ``tables`` (`TABLES`), each padded with zeros. The rest offsets are 0, 1, ... and
     need only their number ([`layout`][heartpole.kernel.layout])."""
-    width = row_width(len(tables.floor))
-    rows = [pack_row(e, EFFECTS) for e in effects] + [pack_row(tables, TABLES)]
-    return np.array([row + [0.0] * (width - len(row)) for row in rows], dtype=np.float32)
+    return np.array(padded_rows(effects, tables), dtype=np.float32)
 
 
 def layout(num_variables: int, num_rest_offsets: int, num_actions: int) -> tuple[tuple[None, ...], ...]:

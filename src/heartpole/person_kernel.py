@@ -114,13 +114,9 @@ def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variabl
     """A compiled ``set(values, value)``: the ``table`` ``values`` with number ``column`` of its packed row
     ([`pack_row`][heartpole.kernel.pack_row]) set to ``value``. Written out field by field, so that the
     indices are constants of the code (numba's ``tuple_setitem`` takes tuples of one type only)."""
-    per_variable = len(fields.per_variable)
     arguments = [f"values[{j}]" for j in range(len(table._fields))]  # type: ignore[attr-defined]
-    if column < per_variable * num_variables:
-        k, v = divmod(column, num_variables)
-        arguments[k] = f"tuple_setitem(values[{k}], {v}, value)"
-    else:
-        arguments[per_variable + column - per_variable * num_variables] = "value"
+    k, v = kernel.field_at(fields, num_variables, column)
+    arguments[k] = "value" if v is None else f"tuple_setitem(values[{k}], {v}, value)"
     source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
     namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
     exec(source, namespace)  # code made here from field indices, nothing from outside
@@ -129,12 +125,10 @@ def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variabl
 
 def _getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
     """A compiled ``get(values)``: number ``column`` of the ``table`` ``values``' packed row."""
-    per_variable = len(fields.per_variable)
-    if column < per_variable * num_variables:
-        k, v = divmod(column, num_variables)
-        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
-    j = per_variable + column - per_variable * num_variables
-    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[j])
+    k, v = kernel.field_at(fields, num_variables, column)
+    if v is None:
+        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k])
+    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
 
 
 @functools.lru_cache(maxsize=256)

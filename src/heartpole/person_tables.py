@@ -98,7 +98,5 @@ class PersonTables:
                 values[field.name] = tuple(found) if len(found) == 2 else found[0]
         params = types.SimpleNamespace(**values)  # Params' fields, arrays for the drawn ones
         effects, tables = step_tables(self.dynamics.actions, self.dynamics.variables, params)  # type: ignore[arg-type]
-        width = kernel.row_width(len(self.dynamics.variables))
-        rows = [kernel.pack_row(e, kernel.EFFECTS) for e in effects] + [kernel.pack_row(tables, kernel.TABLES)]
-        cells = [np.broadcast_to(np.float32(x), (n,)) for row in rows for x in row + [0.0] * (width - len(row))]
+        cells = [np.broadcast_to(np.float32(x), (n,)) for row in kernel.padded_rows(effects, tables) for x in row]
         return np.stack(cells, axis=1)
