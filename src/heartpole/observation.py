@@ -41,10 +41,9 @@ class Observer:
 
     def __init__(self, dynamics: Dynamics, people: Any, observe_traits: Any, measurement: Any) -> None:
         self.people = People.resolve(people)
-        observe_traits = check_observe_traits(observe_traits, self.people)
+        self.observe_traits = check_observe_traits(observe_traits, self.people)
         if measurement is not None and not isinstance(measurement, Measurement):
             raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
-        self.observe_traits = bool(observe_traits)
         self.measurement = measurement
         self.sensor: Sensor | None = None if measurement is None else measurement.sensor(dynamics.names)
         self.plain = self.sensor is None and not self.observe_traits
