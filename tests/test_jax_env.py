@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import inspect
+import math
 import subprocess
 import sys
 
@@ -122,7 +123,7 @@ def test_reset_and_step_shapes_dtypes_and_spaces() -> None:
     expected = {"truncated", "terminated", "discount", "final_observation", "heart_attack", "heart_attack_risk"}
     assert set(info) >= expected | {"productivity", "score"}
     assert info["heart_attack_risk"].dtype == info["score"].dtype == info["productivity"].dtype == jnp.float32
-    assert env.get_obs(state) is state.variables
+    np.testing.assert_array_equal(env.get_obs(state), jnp.stack(state.variables))
     stepped = env.step_env(jax.random.key(3), state, 0, params)
     assert len(stepped) == 5 and int(stepped[1].time) == 2 and not bool(stepped[3])
     np.testing.assert_array_equal(env.observe(jax.random.key(4), stepped[1], 0, params), stepped[0])
@@ -180,23 +181,28 @@ def test_truncation_at_the_limit_and_autoreset() -> None:
 
 
 def test_jit_and_vmap_over_keys_and_params() -> None:
+    """A batch of parameters: proclivity 0 never has a heart attack; proclivity 1 (drinking coffee) has as many
+    as its summed risks say, within 5 standard deviations (Poisson-binomial: sd <= sqrt(sum of risks))."""
+    n = 512
     env, params = make("HeartPole-v0", max_steps=50)
-    keys = jax.random.split(jax.random.key(0), 64)
+    keys = jax.random.split(jax.random.key(0), n)
     obs, states = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
-    assert obs.shape == (64, 6) and len(set(np.asarray(obs[:, ALERTNESS]).tolist())) == 64
-    # A batch of parameters: proclivity 0 never has a heart attack, proclivity 1 often (drinking coffee).
-    batch = jax.tree_util.tree_map(lambda x: jnp.stack([x] * 64), params)
-    proclivity = jnp.where(jnp.arange(64) < 32, 0.0, 1.0).astype(jnp.float32)
+    assert obs.shape == (n, 6) and len(set(np.asarray(obs[:, ALERTNESS]).tolist())) == n
+    batch = jax.tree_util.tree_map(lambda x: jnp.stack([x] * n), params)
+    proclivity = jnp.where(jnp.arange(n) < n // 2, 0.0, 1.0).astype(jnp.float32)
     batch = batch.replace(heart_attack_proclivity=proclivity)
     step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None, 0)))
 
     def body(carry, key):
-        obs, states, attacks = carry
-        obs, states, _, _, _, info = step(jax.random.split(key, 64), states, 1, batch)
-        return (obs, states, attacks + info["heart_attack"]), None
+        obs, states, attacks, risks = carry
+        obs, states, _, _, _, info = step(jax.random.split(key, n), states, 1, batch)
+        return (obs, states, attacks + info["heart_attack"], risks + info["heart_attack_risk"]), None
 
-    (_, _, attacks), _ = jax.lax.scan(body, (obs, states, jnp.zeros(64, jnp.int32)), jax.random.split(keys[0], 50))
-    assert int(attacks[:32].sum()) == 0 and int(attacks[32:].sum()) > 32
+    start = (obs, states, jnp.zeros(n, jnp.int32), jnp.zeros(n, jnp.float32))
+    (_, _, attacks, risks), _ = jax.lax.scan(body, start, jax.random.split(keys[0], 50))
+    expected = float(risks[n // 2 :].sum())
+    assert int(attacks[: n // 2].sum()) == 0 and expected > 100
+    assert abs(int(attacks[n // 2 :].sum()) - expected) < 5 * math.sqrt(expected)
 
 
 def test_v1_and_user_variants() -> None:

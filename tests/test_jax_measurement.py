@@ -29,7 +29,7 @@ def test_noise_has_the_given_sd_on_measured_columns_only() -> None:
     keys = jax.random.split(jax.random.key(0), N)
     obs, states = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))(keys, params)
     obs, states, *_ = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None, None)))(keys, states, COFFEE, params)
-    errors = np.asarray(obs, np.float64) - np.asarray(states.variables, np.float64)
+    errors = np.asarray(obs, np.float64) - np.stack(states.variables, -1).astype(np.float64)
     for column, sd in ((ALERTNESS, 0.3), (HYPERTENSION, 0.05)):
         assert abs(errors[:, column].std(ddof=1) / sd - 1) < 0.03
         assert abs(errors[:, column].mean()) < 5 * sd / math.sqrt(N)

@@ -47,7 +47,7 @@ from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
 
-    from heartpole.optimum import OptimumSolution
+    from heartpole.optimum import OptimumSolution, PeopleOptimum
 
 DEFAULT_EPISODES = 2000
 DEFAULT_NUM_ENVS = 10_000
@@ -142,7 +142,7 @@ class EvaluationResult:
         return regret_solved(self.regret_ci95[1])
 
     @classmethod
-    def from_episodes(cls, episodes: _Episodes, **about: Any) -> EvaluationResult:
+    def from_episodes(cls, episodes: Episodes, **about: Any) -> EvaluationResult:
         """Summarise per-episode values; ``about`` holds policy, env_id, seed, num_envs, max_steps, seconds."""
         summary: dict[str, Any] = {}
         for mean, interval, values in SUMMARIES:
@@ -150,7 +150,7 @@ class EvaluationResult:
             summary[mean] = float(array.mean())
             if interval is not None:
                 summary[interval] = confidence_interval(array)
-        arrays = {name: getattr(episodes, name) for name in _Episodes.__dataclass_fields__}
+        arrays = {name: getattr(episodes, name) for name in Episodes.__dataclass_fields__}
         return cls(episodes=len(episodes.returns), **summary, **arrays, **about)
 
     @property
@@ -264,8 +264,10 @@ class Comparison:
 
 
 @dataclass
-class _Episodes:
-    """Per-episode values of an evaluation, or of one chunk of its episodes."""
+class Episodes:
+    """Per-episode values of an evaluation, or of one chunk of its episodes: the returns, expected-risk returns
+    and final scores (float64), heart attacks (int64), summed heart-attack probabilities (float64), drinks and
+    sleeps (int64) and each episode's person (int64, -1 without one)."""
 
     returns: np.ndarray
     expected_returns: np.ndarray
@@ -277,7 +279,7 @@ class _Episodes:
     person: np.ndarray
 
     @classmethod
-    def concatenate(cls, parts: Sequence[_Episodes]) -> _Episodes:
+    def concatenate(cls, parts: Sequence[Episodes]) -> Episodes:
         """The episodes of ``parts``, in order."""
         return cls(*(np.concatenate([getattr(part, f) for part in parts]) for f in cls.__dataclass_fields__))
 
@@ -326,7 +328,7 @@ def evaluate(
     env_kwargs = dict(env_kwargs or {})
     truth = people_truth(env_id, env_kwargs, show_progress=progress is True) if regret else None
     act, name = _resolve(policy, env_id, env_kwargs, seed)
-    solution = _optimum(env_id, env_kwargs) if regret else None  # before the episodes: no failure loses them
+    solution = optimum_or_reason(env_id, env_kwargs) if regret else None  # before the episodes: no failure loses them
     started = time.perf_counter()
     parts = []
     with _progress_callback(progress, f"evaluating {name}", episodes, env_id, env_kwargs) as tick:
@@ -334,8 +336,10 @@ def evaluate(
             with vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
                 parts.append(_run_episodes(env, act, name, chunk_seed(seed, index), tick))
                 max_steps = int(base_env(env).max_steps)
-    result = EvaluationResult.from_episodes(
-        _Episodes.concatenate(parts),
+    return summarise(
+        Episodes.concatenate(parts),
+        truth,
+        solution,
         policy=name,
         env_id=env_id,
         seed=seed,
@@ -343,13 +347,24 @@ def evaluate(
         max_steps=max_steps,
         seconds=time.perf_counter() - started,
     )
+
+
+def summarise(
+    episodes: Episodes, truth: PeopleOptimum | str | None, solution: OptimumSolution | str | None, **about: Any
+) -> EvaluationResult:
+    """The [`EvaluationResult`][heartpole.evaluation.EvaluationResult] of ``episodes`` (every engine's:
+    [`evaluate`][heartpole.evaluation.evaluate]'s and [`heartpole.jax.evaluate`][heartpole.jax.evaluation.evaluate]'s),
+    with the oracle regret against ``truth`` ([`people_truth`][heartpole.truth.people_truth]) and the regret against
+    ``solution`` ([`optimum_or_reason`][heartpole.evaluation.optimum_or_reason]; ``None``: not asked for);
+    ``about`` holds policy, env_id, seed, num_envs, max_steps and seconds."""
+    result = EvaluationResult.from_episodes(episodes, **about)
     result = replace(result, **oracle_fields(truth, result.person, result.expected_returns))
     if solution is None or isinstance(solution, str):
         return replace(result, no_regret_reason=solution)
     return result.with_regret(solution.expected_return, solution.error_bound)
 
 
-def _optimum(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:
+def optimum_or_reason(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:
     """The optimum of the env ([`heartpole.optimum.optimum`][heartpole.optimum.solution.optimum]), or why the solver
     does not cover it."""
     from heartpole.optimum import NotCoveredError, optimum
@@ -421,7 +436,7 @@ def rank(results: Iterable[EvaluationResult]) -> list[EvaluationResult]:
     return sorted(results, key=lambda result: -result.expected_return)
 
 
-def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick: Progress) -> _Episodes:
+def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick: Progress) -> Episodes:
     """Run every env of the vector env ``env`` for one full episode (``max_steps`` steps after reset)."""
     size, dynamics = env.num_envs, base_env(env).dynamics
     drinks_table = np.array([action.is_drink for action in dynamics.actions])
@@ -436,7 +451,7 @@ def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick:
         attacks += step.info["heart_attack"]
         tick(size)
     scores = np.asarray(step.info["score"], dtype=np.float64)
-    return _Episodes(
+    return Episodes(
         returns=returns,
         expected_returns=expected_risk(scores, risks, dynamics.params.heart_attack_penalty),
         scores=scores,

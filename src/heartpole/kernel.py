@@ -34,6 +34,7 @@ from numba.np.numpy_support import carray as _carray
 from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import jit, model
+from heartpole import rng as random_numbers  # the module; ``rng`` names envs' generator states here
 from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
 from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
 
@@ -103,8 +104,8 @@ def stored(variable: Any, x: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------------------------------------
-# The random numbers: a keyed hash of (key, counter, draw), in 32-bit integer arithmetic. numba would
-# widen uint32 arithmetic to 64 bits (half the vector lanes), so the four operations are LLVM's own.
+# The random numbers are heartpole.rng's, compiled with these four 32-bit operations: LLVM's own, since numba
+# would widen uint32 arithmetic to 64 bits (half the vector lanes).
 def _uint32_operation(name: str) -> Any:
     @intrinsic
     def operation(typingctx: Any, a: Any, b: Any) -> Any:
@@ -135,55 +136,28 @@ literals become float32 constants: numba would compute in float64 otherwise, at 
 _step, _initial_state, _kept_by_the_step = compiled.step, compiled.initial_state, compiled.kept_by_the_step
 
 U32 = np.uint32
-MIX_1, MIX_2, GOLDEN = U32(0x21F0AAAD), U32(0x735A2D97), U32(0x9E3779B9)
-TWO_TO_MINUS_24 = F32(2.0**-24)
 SMALLEST_NORMAL = F32(np.finfo(np.float32).tiny)
-KEY_LOW, KEY_HIGH, COUNTER = 0, 1, 2
-"""The rows of an env's generator state (``rng[:, i]``, uint32): its 64-bit key and its draw counter."""
+KEY_LOW, KEY_HIGH, COUNTER = random_numbers.KEY_LOW, random_numbers.KEY_HIGH, random_numbers.COUNTER
+generator_states = random_numbers.generator_states
 
-
-@njit(**JIT, **INLINE)
-def mix32(x: Any) -> Any:
-    """A bijective hash of 32-bit values with strong avalanche (C. Wellons' ``lowbias32``, bias ~0.1)."""
-    x = xor32(x, shr32(x, U32(16)))
-    x = mul32(x, MIX_1)
-    x = xor32(x, shr32(x, U32(15)))
-    x = mul32(x, MIX_2)
-    return xor32(x, shr32(x, U32(15)))
-
-
-@njit(**JIT, **INLINE)
-def uniform(key_low: Any, key_high: Any, counter: Any, draw: Any) -> Any:
-    """The ``draw``-th uniform of an env's draw number ``counter``: a float32 in [0, 1).
-
-    Three rounds of `mix32`, keyed by the two halves of the env's 64-bit key; the top 24 bits of
-    the last hash make the uniform, so every value is a multiple of ``2 ** -24``. A draw's first two
-    rounds are shared by its uniforms. An env's counter wraps around after 2 ** 32 draws.
-    """
-    h = mix32(xor32(U32(counter), U32(key_low)))
-    h = mix32(add32(h, U32(key_high)))
-    h = mix32(xor32(h, mul32(add32(U32(draw), U32(1)), GOLDEN)))
-    return F32(shr32(h, U32(8))) * TWO_TO_MINUS_24
-
-
-@njit(**JIT, **INLINE)
-def draws(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
-    """The ``len(zeros) + 2`` uniforms of one step ([`step`][heartpole.model.step]'s ``u``), as a tuple.
-
-    The variables the step keeps itself (``time_since_slept`` ... ``work_done``) take no effects, so their
-    uniforms are 0 and cost nothing: the compiled loop drops their hashes.
-    """
-    u = zeros + (F32(0.0), F32(0.0))
-    for j in range(len(u)):
-        u = tuple_setitem(u, j, where(_kept_by_the_step(j), F32(0.0), uniform(key_low, key_high, counter, j)))
-    return u
-
-
-def generator_states(rng: np.random.Generator, count: int) -> np.ndarray:
-    """The generator states of ``count`` envs, ``(3, count)`` uint32: each a fresh 64-bit key drawn from
-    ``rng`` (in env order, one 64-bit draw each) and a counter at 0."""
-    keys = rng.integers(0, 2**64, size=count, dtype=np.uint64)
-    return np.stack([keys & np.uint64(0xFFFFFFFF), keys >> np.uint64(32), np.zeros_like(keys)]).astype(np.uint32)
+compiled_rng = random_numbers.rebind(
+    {
+        "u32": U32,
+        "mul32": mul32,
+        "add32": add32,
+        "xor32": xor32,
+        "shr32": shr32,
+        "to_float": F32,
+        "where": where,
+        "replace": tuple_setitem,
+        "kept_by_the_step": _kept_by_the_step,
+    },
+    F32,
+    njit(**JIT, **INLINE),
+)
+"""[`heartpole.rng`][heartpole.rng]'s generator, compiled: its 32-bit integer operations are LLVM's own (numba
+would widen uint32 arithmetic to 64 bits, half the vector lanes)."""
+mix32, uniform, draws = compiled_rng.mix32, compiled_rng.uniform, compiled_rng.draws
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -476,6 +450,7 @@ def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> Non
 # They inline model's step and jit's tools: an edit of either recompiles them.
 cache_keyed_on(model, step_envs, step_one, reset_envs)
 cache_keyed_on(jit, step_envs, step_one, reset_envs)
+cache_keyed_on(random_numbers, step_envs, step_one, reset_envs)
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one

@@ -22,6 +22,8 @@ from typing import Annotated, Any, Literal, NamedTuple, get_type_hints
 import numpy as np
 from numpy import where
 
+from heartpole.backend import called_by, rebind_functions
+
 Number = Any
 """A Python float, a NumPy scalar or array, or a backend's number (numba float32, JAX tracer)."""
 State = tuple[Number, ...]
@@ -412,43 +414,7 @@ BACKEND_BOUND = ("exp", "where", "replace")
 """The operations every backend binds its own way (NumPy's here)."""
 STEP_ROOTS = ("step", "initial_state", "kept_by_the_step")
 """The functions a backend runs: the step, the start of an episode and which variables the step keeps."""
-
-
-def called_by(roots: Iterable[str], namespace: dict[str, Any]) -> tuple[str, ...]:
-    """The functions of this module in ``namespace`` that ``roots`` call, directly or not, and the roots,
-    callees first.
-
-    Read from their code (the global names it loads, inner code included), so a helper added here and called
-    from [`step`][heartpole.model.step] is found without being listed anywhere.
-    """
-    seen: set[str] = set()
-    found: list[str] = []
-
-    def visit(name: str) -> None:
-        function = namespace.get(name)
-        if name in seen or name in BACKEND_BOUND or not isinstance(function, types.FunctionType):
-            return
-        if function.__module__ != namespace["__name__"]:  # another module's function: not code to rebind
-            return
-        seen.add(name)
-        for callee in _loaded_names(function.__code__):
-            visit(callee)
-        found.append(name)
-
-    for root in roots:
-        visit(root)
-    return tuple(found)
-
-
-def _loaded_names(code: types.CodeType) -> list[str]:
-    names = list(code.co_names)
-    for constant in code.co_consts:
-        if isinstance(constant, types.CodeType):
-            names += _loaded_names(constant)
-    return names
-
-
-FUNCTIONS = called_by(STEP_ROOTS, globals())
+FUNCTIONS = called_by(STEP_ROOTS, globals(), BACKEND_BOUND)
 """The functions that make the step, callees first: found from [`step`][heartpole.model.step]'s own code."""
 
 
@@ -468,15 +434,4 @@ def rebind(
     Returns:
         The functions by name; each calls the others' rebound versions.
     """
-    missing = [name for name in BACKEND_BOUND if name not in bindings]
-    if missing:
-        raise ValueError(f"rebind needs the backend's {missing}; it binds {list(BACKEND_BOUND)}")
-    namespace: dict[str, Any] = {**globals(), **bindings}
-    for name in FUNCTIONS:
-        function = globals()[name]
-        code = function.__code__
-        code = code.replace(co_consts=tuple(constant(c) if type(c) is float else c for c in code.co_consts))
-        rebound = types.FunctionType(code, namespace, name, function.__defaults__)
-        rebound.__qualname__, rebound.__module__ = function.__qualname__, function.__module__
-        namespace[name] = wrap(rebound)
-    return types.SimpleNamespace(**{name: namespace[name] for name in FUNCTIONS})
+    return rebind_functions(globals(), FUNCTIONS, BACKEND_BOUND, bindings, constant, wrap)

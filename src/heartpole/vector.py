@@ -188,6 +188,14 @@ class HeartPoleVectorEnv(VectorEnv):
             raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
         return self._envs.copy()
 
+    @property
+    def generators(self) -> np.ndarray:
+        """The envs' generator states, ``(3, num_envs)`` uint32 (a copy; rows as [`heartpole.rng`][heartpole.rng]'s
+        ``KEY_LOW``, ``KEY_HIGH``, ``COUNTER``): a rollout that starts from them draws this env's random numbers."""
+        if not self._started:
+            raise ResetNeeded("call reset() before reading the generator states of HeartPoleVectorEnv")
+        return self._rng.copy()
+
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:

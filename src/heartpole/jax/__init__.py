@@ -3,11 +3,12 @@
 ::
 
     import jax
-    from heartpole.jax import make
+    from heartpole.jax import evaluate, make
 
     env, params = make("HeartPole-v0")
     obs, state = env.reset(jax.random.key(0), params)
-    obs, state, reward, done, info = env.step(jax.random.key(1), state, 2, params)
+    obs, state, reward, terminated, truncated, info = env.step(jax.random.key(1), state, 2, params)
+    result = evaluate("expert", episodes=2000)  # heartpole.evaluate's, played on the device
 
 ``import heartpole`` never imports JAX; this package does.
 """
@@ -20,7 +21,20 @@ try:
 except ImportError as error:  # pragma: no cover - exercised in a subprocess without JAX
     raise ImportError(f"heartpole.jax needs JAX: {JAX_EXTRA}") from error
 
-from heartpole.jax.env import MODEL, EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
+from heartpole.jax.env import MODEL, RNG, EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
+from heartpole.jax.evaluation import evaluate, evaluate_batch  # noqa: E402
 from heartpole.jax.spaces import Box, Discrete  # noqa: E402
 
-__all__ = ["Box", "Discrete", "EnvParams", "EnvState", "HeartPoleJax", "JAX_EXTRA", "MODEL", "make"]
+__all__ = [
+    "Box",
+    "Discrete",
+    "EnvParams",
+    "EnvState",
+    "HeartPoleJax",
+    "JAX_EXTRA",
+    "MODEL",
+    "RNG",
+    "evaluate",
+    "evaluate_batch",
+    "make",
+]

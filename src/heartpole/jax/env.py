@@ -5,8 +5,14 @@ rebound to ``jax.numpy`` (``exp``, ``where``) with tuples for states, so JAX tra
 NumPy envs compile with numba. What this module adds is the gymnax machinery around it: the state and
 parameter pytrees, key handling, the step counter, truncation and autoreset.
 
-Differences from the NumPy envs: the random numbers come from ``jax.random`` (threefry), so a seed gives
-other episodes than the same seed of ``gym.make``; the two are equal in distribution (tested).
+The random numbers are [`heartpole.rng`][heartpole.rng]'s counter-based generator, the NumPy envs' own, traced
+(`RNG`). gymnax's ``step(key, ...)`` takes its randomness from ``key`` (one state stepped with two keys may
+have two futures): a step's uniforms are the hash of one 64-bit draw of ``key``. A rollout that carries the
+NumPy envs' generator states instead ([`heartpole.jax.evaluate`][heartpole.jax.evaluation.evaluate]) plays
+the NumPy envs' very episodes.
+
+The state keeps one float32 scalar per state variable (``state.variables`` is a tuple, as gymnax's CartPole
+keeps ``x``, ``x_dot``, ...): under ``vmap`` each is one contiguous array, and the observation stacks them.
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heartpole import model
+from heartpole import model, rng
 from heartpole.dynamics import Dynamics
 from heartpole.jax.population import Population
 from heartpole.jax.spaces import Box, Discrete
@@ -32,14 +38,43 @@ MODEL = model.rebind({"exp": jnp.exp, "where": jnp.where, "replace": model.repla
 """[`heartpole.model`][heartpole.model]'s functions with their own code objects, run on ``jax.numpy``."""
 
 
+def _u32(value: Any) -> jax.Array:
+    return jnp.asarray(value, dtype=jnp.uint32)
+
+
+RNG = rng.rebind(
+    {
+        "u32": _u32,
+        "mul32": jnp.multiply,
+        "add32": jnp.add,
+        "xor32": jnp.bitwise_xor,
+        "shr32": jax.lax.shift_right_logical,
+        "to_float": lambda bits: bits.astype(jnp.float32),
+        "where": jnp.where,
+        "replace": model.replace,
+        "kept_by_the_step": model.kept_by_the_step,
+    }
+)
+"""[`heartpole.rng`][heartpole.rng]'s generator with its own code objects, on ``jax.numpy``'s 32-bit unsigned
+integers (which wrap around as the generator needs): the NumPy envs' uniforms, bit for bit."""
+
+
+def key_draw(key: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """One 64-bit draw of ``key`` as a generator key's two uint32 halves, whose counter-0 uniforms a gymnax
+    step (or reset) uses: one threefry call instead of one per uniform."""
+    bits = jax.random.bits(key, (2,), jnp.uint32)
+    return bits[0], bits[1]
+
+
 @jax.tree_util.register_dataclass
 @dataclass(frozen=True)
 class EnvState:
-    """One episode's state: the state variables (float32, observation order), the decisions taken and the
-    episode's person (an env with ``people``): the cohort index (int32; -1 for a distribution or no people)
-    and the person's values (float32, one per column of ``people.columns``; none without people)."""
+    """One episode's state: the state variables (a tuple of float32 scalars, observation order: one array per
+    variable under ``vmap``), the decisions taken and the episode's person (an env with ``people``): the cohort
+    index (int32; -1 for a distribution or no people) and the person's values (float32, one per column of
+    ``people.columns``; none without people)."""
 
-    variables: jax.Array
+    variables: tuple[jax.Array, ...]
     time: jax.Array
     person: jax.Array = field(default_factory=lambda: jnp.int32(-1))
     person_values: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
@@ -173,9 +208,19 @@ class HeartPoleJax:
     def from_id(cls, env_id: str = "HeartPole-v0", **env_kwargs: Any) -> HeartPoleJax:
         """The JAX env of a registered HeartPole id (v0, v1, or a `heartpole.register_variant` one),
         made with the keyword arguments ``gymnasium.make`` takes (``max_steps``, ``heart_attack_proclivity``...),
-        ``people``, ``observe_traits`` and ``measurement`` among them."""
+        ``people``, ``observe_traits`` and ``measurement`` among them.
+
+        Raises:
+            ValueError: a ``render_mode`` (the JAX env draws no frames: render with ``gymnasium.make``'s env).
+        """
         from heartpole.policies import env_dynamics
 
+        if env_kwargs.get("render_mode") is not None:
+            raise ValueError(
+                f"heartpole.jax envs do not render (render_mode={env_kwargs['render_mode']!r}); render_mode=None "
+                "is accepted. Render with gymnasium.make(env_id, render_mode='rgb_array') instead"
+            )
+        env_kwargs.pop("render_mode", None)
         ours = ("people", "observe_traits", "measurement")
         mine = {name: env_kwargs.pop(name) for name in ours if name in env_kwargs}
         return cls(env_dynamics(env_id, env_kwargs), **mine)
@@ -217,55 +262,97 @@ class HeartPoleJax:
         return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
-        """[`initial_state`][heartpole.model.initial_state] with one uniform draw from ``key``; with people,
-        the episode's person is drawn first (from a key split off ``key``) and wakes up by their own params."""
+        """[`initial_state`][heartpole.model.initial_state] with the wake-up uniform of one draw of ``key``;
+        with people, the episode's person is drawn first (from a key split off ``key``) and wakes up by their
+        own params."""
         person, values = jnp.int32(-1), jnp.zeros(0, jnp.float32)
         if self.population is not None:
             key, person_key = jax.random.split(key)
             person, values = self.population.draw(person_key)
-        state = EnvState(variables=jnp.zeros(self.num_variables, jnp.float32), time=jnp.int32(0), person=person,
-                         person_values=values)  # fmt: skip
+        return self.start(key, person, values, RNG.wake_uniform(*key_draw(key), 0, self.num_variables), params)
+
+    def start(
+        self, key: jax.Array, person: jax.Array, values: jax.Array, uniform: jax.Array, params: EnvParams
+    ) -> tuple[jax.Array, EnvState]:
+        """``(obs, state)`` of an episode of ``person`` (cohort index, or -1) with ``values`` that wakes up with
+        ``uniform``; ``key`` draws the first measurement's noise (with ``measurement``)."""
         zeros = (jnp.float32(0.0),) * self.num_variables
-        uniform = jax.random.uniform(key, (), jnp.float32)
+        state = EnvState(variables=zeros, time=jnp.int32(0), person=person, person_values=values)
         tables = self._tables(self.person_params(state, params))
-        state = dataclasses.replace(state, variables=jnp.stack(MODEL.initial_state(zeros, uniform, tables)))
+        state = dataclasses.replace(state, variables=_floats(MODEL.initial_state(zeros, uniform, tables)))
         if self.sensor is not None:
-            state = dataclasses.replace(state, seen=state.variables)
+            state = dataclasses.replace(state, seen=jnp.stack(state.variables))
             state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, jnp.float32(jnp.inf))
         return self.get_obs(state), state
 
     def step_env(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """[`step`][heartpole.model.step] with ``len(state) + 2`` uniform draws from ``key``, no reset:
-        ``(obs, state, reward, terminated, info)``."""
-        n = self.num_variables
-        u = jax.random.uniform(key, (n + 2,), jnp.float32)
-        s = tuple(state.variables[v] for v in range(n))
+        """[`step`][heartpole.model.step] with the ``len(state) + 2`` uniforms of one draw of ``key``
+        ([`draws`][heartpole.rng.draws] of its 64-bit `key_draw`), no reset: ``(obs, state, reward,
+        terminated, info)``.
+
+        An action that is not one of the env's is refused with the NumPy envs' ``ValueError`` where it is
+        concrete, and ``TypeError`` for a non-integer dtype; under ``jit`` an out-of-range integer changes
+        nothing (the state is returned as it was, the reward is 0) and ``info["invalid_action"]`` is true.
+        """
+        action = self.check_action(action)
+        zeros = (jnp.float32(0.0),) * self.num_variables
+        uniforms = RNG.draws(*key_draw(key), jnp.uint32(0), zeros)
+        return self.advance(key, state, action, params, uniforms)
+
+    def advance(
+        self, key: jax.Array, state: EnvState, action: jax.Array, params: EnvParams, uniforms: tuple[jax.Array, ...]
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """`step_env` with its ``uniforms`` given (a rollout on the NumPy envs' generator states draws them
+        itself); ``key`` draws the measurement's noise. ``action`` is an int32 that `check_action` passed."""
+        valid = (action >= 0) & (action < self._num_actions)
         mine = self.person_params(state, params)
-        new, reward, worked, risk, attack, score = MODEL.step(
-            s, self._effects(mine, action), tuple(u[i] for i in range(n + 2)), self._tables(mine)
-        )
-        state = dataclasses.replace(state, variables=jnp.stack(new).astype(jnp.float32), time=state.time + 1)
+        old = state.variables
+        new, reward, worked, risk, attack, score = MODEL.step(old, self._effects(mine, action), uniforms,
+                                                              self._tables(mine))  # fmt: skip
+        new = tuple(jnp.where(valid, n, o) for n, o in zip(_floats(new), old))
+        state = dataclasses.replace(state, variables=new, time=state.time + valid.astype(jnp.int32))
         if self.sensor is not None:
-            passed = state.variables[TIME_ELAPSED] - s[TIME_ELAPSED]
+            passed = new[TIME_ELAPSED] - old[TIME_ELAPSED]
             state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, passed)
         info = {
             "discount": self.discount(state, params),
-            "heart_attack": attack,
+            "heart_attack": attack & valid,
             "heart_attack_risk": jnp.float32(risk),
             "productivity": jnp.float32(worked),
             "score": jnp.float32(score),
+            "invalid_action": ~valid,
         }
         if self.population is not None:
             info |= {"person": state.person, "traits": state.person_values[self.population.trait_index]}
-        return self.get_obs(state), state, jnp.float32(reward), self.is_terminated(state, params), info
+        reward = jnp.where(valid, jnp.float32(reward), jnp.float32(0.0))
+        return self.get_obs(state), state, reward, self.is_terminated(state, params), info
+
+    def check_action(self, action: Any) -> jax.Array:
+        """``action`` as an int32 array, refused where it cannot be one of the env's actions: ``TypeError``
+        for a non-integer dtype (known when tracing), the NumPy envs' ``ValueError`` for a concrete value
+        outside ``0 .. num_actions - 1``. A traced value is checked in the step (`advance`)."""
+        array = action if isinstance(action, jax.Array) else np.asarray(action)
+        if array.dtype == np.bool_ or not np.issubdtype(array.dtype, np.integer):
+            raise TypeError(
+                f"invalid HeartPole action {action!r} of dtype {array.dtype}: actions are integers in "
+                f"0..{self._num_actions - 1} ({self._valid_actions()})"
+            )
+        if not isinstance(array, jax.core.Tracer):
+            values = np.asarray(array)
+            if values.size and (values.min() < 0 or values.max() >= self._num_actions):
+                raise ValueError(f"invalid HeartPole action {action!r}; valid actions: {self._valid_actions()}")
+        return jnp.asarray(array, dtype=jnp.int32)
+
+    def _valid_actions(self) -> str:
+        return ", ".join(f"{i} ({a.name})" for i, a in enumerate(self.dynamics.actions))
 
     def get_obs(self, state: EnvState, params: EnvParams | None = None, key: jax.Array | None = None) -> jax.Array:
-        """The observation: the state variables in observation order (float32), then the person's traits
-        with ``observe_traits``; with ``measurement``, the variables as measured, then their age if measured
-        less often than every half-hour, then the traits."""
-        obs = state.variables
+        """The observation: the state variables in observation order (float32, stacked), then the person's
+        traits with ``observe_traits``; with ``measurement``, the variables as measured, then their age if
+        measured less often than every half-hour, then the traits."""
+        obs = jnp.stack(state.variables)
         if self.sensor is not None:
             obs = self.sensor.observation(state.seen[None], state.age[None], jnp)[0]
         if self.observe_traits and self.population is not None:
@@ -277,7 +364,8 @@ class HeartPoleJax:
         """``state`` with a new measurement where one is due ([`Sensor.read`][heartpole.measurement.Sensor.read],
         one standard normal per measured variable from ``key``)."""
         noise = jax.random.normal(key, (1, len(sensor.columns)), jnp.float32)
-        seen, age = sensor.read(state.variables[None], state.seen[None], state.age[None], passed[None], noise, jnp)
+        truth = jnp.stack(state.variables)[None]
+        seen, age = sensor.read(truth, state.seen[None], state.age[None], passed[None], noise, jnp)
         return dataclasses.replace(state, seen=seen[0], age=age[0])
 
     def observe(self, key: jax.Array, state: EnvState, action: Any, params: EnvParams) -> jax.Array:
@@ -325,7 +413,9 @@ class HeartPoleJax:
         variables = observation_space(self.dynamics)
         columns = 0 if self.population is None else len(self.population.columns)
         return {
-            "variables": Box(variables.low, variables.high, variables.shape, jnp.float32),
+            "variables": tuple(
+                Box(low, high, (), jnp.float32) for low, high in zip(variables.low.tolist(), variables.high.tolist())
+            ),
             "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32),
             "person": Box(-1, max(len(self.people.cohort) - 1, -1) if self.people else -1, (), jnp.int32),
             "person_values": Box(-np.inf, np.inf, (columns,), jnp.float32),
@@ -379,6 +469,11 @@ class HeartPoleJax:
         """``table`` with each ``PerVariable`` array as the tuple of its items, as the model's step reads it."""
         return table._replace(**{name: tuple(getattr(table, name)[v] for v in range(self.num_variables))
                                  for name in fields.per_variable})  # fmt: skip
+
+
+def _floats(values: tuple[Any, ...]) -> tuple[jax.Array, ...]:
+    """``values`` as float32 scalars (a state as `EnvState` keeps it)."""
+    return tuple(jnp.asarray(value, dtype=jnp.float32) for value in values)
 
 
 def make(env_id: str = "HeartPole-v0", **env_kwargs: Any) -> tuple[HeartPoleJax, EnvParams]:

@@ -20,10 +20,12 @@ from typing import TYPE_CHECKING, Any, cast
 
 import gymnasium as gym
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from heartpole import files, records
-from heartpole.jax.ppo import PPOSettings, Runner, train_compiled
+from heartpole.jax.evaluation import evaluate_batch
+from heartpole.jax.ppo import PPOSettings, Runner, RunningStats, Trained, policy_and_value, train_compiled
 from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_NAME
 from heartpole.registry import quiet_version_warnings
 
@@ -49,14 +51,28 @@ def sb3_ppo(config: Any) -> tuple[BaseAlgorithm, VecEnv]:
     return records.sb3_model(config, venv), venv
 
 
-def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
-    """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's: ``model.zip``
-    (an SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics)."""
-    import torch
-    from stable_baselines3.common.vec_env import VecNormalize
+class SB3Writer:
+    """Writes seeds' trained networks and statistics as ``heartpole train`` saves SB3's runs: ``model.zip`` (an
+    SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics). One SB3 model
+    and env serve every seed (building them is most of the cost), so a seed's files take a few milliseconds of
+    copying and writing. Use it as a context manager: it closes the env."""
 
-    model, venv = sb3_ppo(config)
-    try:
+    def __init__(self, config: Any) -> None:
+        self.config = config
+        self.model, self.venv = sb3_ppo(config)
+
+    def __enter__(self) -> SB3Writer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.venv.close()
+
+    def write(self, runner: Runner, folder: Path) -> None:
+        """Save ``runner``'s network and statistics into ``folder``."""
+        import torch
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        model, venv = self.model, self.venv
         state = model.policy.state_dict()
         for torch_name, layers in (("mlp_extractor.policy_net", "actor"), ("mlp_extractor.value_net", "critic")):
             for i, (weight, bias) in enumerate(runner.network[layers][:-1]):
@@ -68,7 +84,7 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
             state[f"{torch_name}.bias"] = torch.as_tensor(np.asarray(bias).copy())
         model.policy.load_state_dict(state)
         # sb3_ppo makes a PPO (typed as SB3's BaseAlgorithm, which has no n_steps)
-        model.num_timesteps = PPOSettings.from_config(config).num_updates * config.n_envs * model.n_steps  # type: ignore[attr-defined]
+        model.num_timesteps = PPOSettings.from_config(self.config).num_updates * self.config.n_envs * model.n_steps  # type: ignore[attr-defined]
         model.save(folder / MODEL_NAME)
         if isinstance(venv, VecNormalize):
             obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
@@ -78,20 +94,58 @@ def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
                 stats.count = float(ours.count)
             venv.training = False
             venv.save(str(folder / VECNORMALIZE_NAME))
-    finally:
-        venv.close()
 
 
-def _seed_result(
-    config: Any, runner: Runner, curve: list[dict[str, float]], folder: Path, timings: dict[str, float],
-    eval_episodes: int, eval_seed: int, progress: bool, final_folder: Path,
+def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
+    """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's (`SB3Writer`)."""
+    with SB3Writer(config) as writer:
+        writer.write(runner, folder)
+
+
+def network_policy(settings: PPOSettings) -> Callable[[tuple[Any, RunningStats], jax.Array], jax.Array]:
+    """``act((network, obs_stats), obs) -> actions``: a trained network's deterministic actions (the most likely,
+    as SB3's ``predict(deterministic=True)``), on observations normalised as in training."""
+
+    def act(weights: tuple[Any, RunningStats], obs: jax.Array) -> jax.Array:
+        network, stats = weights
+        if settings.normalize_observations:
+            obs = jnp.clip((obs - stats.mean) / jnp.sqrt(stats.var + 1e-8), -settings.clip_obs, settings.clip_obs)
+        logits, _ = policy_and_value(network, obs)
+        return jnp.argmax(logits, axis=-1).astype(jnp.int32)
+
+    return act
+
+
+def evaluate_trained(
+    config: Any, trained: Trained, names: Sequence[str], eval_episodes: int, eval_seed: int
+) -> list[dict[str, Any]]:
+    """Every seed of ``trained`` evaluated as ``heartpole evaluate`` evaluates a model (the same estimator, episodes
+    and JSON), all in one compiled call on the JAX device ([`evaluate_batch`][heartpole.jax.evaluation.evaluate_batch]),
+    each result named as in ``names``."""
+    runners = trained.runners
+    results = evaluate_batch(
+        network_policy(trained.settings),
+        (runners.network, runners.obs_stats),
+        config.env_id,
+        eval_episodes,
+        eval_seed,
+        env_kwargs=dict(config.env_kwargs),
+        names=list(names),
+    )
+    return [result.to_dict() for result in results]
+
+
+def _write_seed(
+    config: Any, writer: SB3Writer, runner: Runner, curve: list[dict[str, float]], folder: Path,
+    evaluation: dict[str, Any], timings: dict[str, float],
 ) -> dict[str, Any]:  # fmt: skip
-    """Write one seed's files into ``folder``, evaluate the saved model as ``heartpole evaluate`` would,
-    and return its line of the summary ([`run_summary`][heartpole.records.run_summary])."""
+    """Write one seed's files into ``folder`` (the model, its statistics, the curve, ``heartpole.json`` and its
+    ``evaluation.json``) and return its line of the summary ([`run_summary`][heartpole.records.run_summary])."""
     started = time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
-    export_sb3(config, runner, folder)
+    writer.write(runner, folder)
     records.write_curve(folder / CURVE_NAME, curve)
+    files.write_json(folder / records.EVALUATION_FILE, evaluation)
     sidecar = {
         **records.run_description(config),
         "backend": "jax",
@@ -99,11 +153,9 @@ def _seed_result(
         **{key: round(value, 2) for key, value in timings.items()},
         "versions": records.versions(jax=jax.__version__),
     }
-    evaluation, _ = records.evaluate_saved(config, folder, sidecar, eval_episodes=eval_episodes, eval_seed=eval_seed,
-                                           progress=progress, final_folder=final_folder)  # fmt: skip
     own = time.perf_counter() - started
-    wall = timings["compile_seconds"] + timings["train_seconds"] + own
-    sidecar.update(eval_seconds=round(own, 2), wall_seconds=round(wall, 2))
+    wall = timings["compile_seconds"] + timings["train_seconds"] + timings["eval_seconds"] + own
+    sidecar.update(write_seconds=round(own, 3), wall_seconds=round(wall, 2))
     files.write_json(folder / SIDECAR_NAME, sidecar)
     return records.run_summary(config, evaluation, timings["train_seconds"], wall) | {
         "compile_seconds": round(timings["compile_seconds"], 2)
@@ -167,16 +219,19 @@ def train_seeds(
     trained = train_compiled(config, seeds, progress=progress, on_compiled=compiled)
     for thread in warm_ups:
         thread.join()
-    timings = trained.timings
+    places = [(folder, final) if single else (folder / f"seed_{seed}", final / f"seed_{seed}") for seed in seeds]
+    started = time.perf_counter()
+    evaluations = evaluate_trained(config, trained, [str(f / MODEL_NAME) for _, f in places], eval_episodes, eval_seed)
+    timings = trained.timings | {"eval_seconds": time.perf_counter() - started}
     runs: list[dict[str, Any]] = []
-    for i, seed in enumerate(seeds):
-        runner, curve = trained.seed(i)
-        where = (folder, final) if single else (folder / f"seed_{seed}", final / f"seed_{seed}")
-        result = _seed_result(replace(config, seed=seed), runner, curve, where[0], timings, eval_episodes, eval_seed,
-                              progress, where[1])  # fmt: skip
-        runs.append(result)
-        if on_run is not None:
-            on_run(result)
+    with SB3Writer(config) as writer:
+        for i, seed in enumerate(seeds):
+            runner, curve = trained.seed(i)
+            result = _write_seed(replace(config, seed=seed), writer, runner, curve, places[i][0], evaluations[i],
+                                 timings)  # fmt: skip
+            runs.append(result)
+            if on_run is not None:
+                on_run(result)
     if single:
         return runs[0]
     summary = records.seeds_summary(config, seeds, runs, eval_episodes=eval_episodes, eval_seed=eval_seed)

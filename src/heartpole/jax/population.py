@@ -68,6 +68,12 @@ class Population:
             # made with that person's Params, bit for bit
             self._cohort_tables = _map_person(jnp.asarray, self.tables(table))
 
+    @property
+    def cohort_values(self) -> jax.Array | None:
+        """A cohort's values, ``(len(cohort), len(columns))`` float32, row ``i`` person ``i``'s; ``None`` for a
+        distribution."""
+        return self._cohort_values
+
     def tables(self, values: Any) -> Tables:
         """The tables of ``n`` people from their ``(n, len(columns))`` values (NumPy, or JAX to trace):
         entries that depend on the person are ``(n,)`` float32 arrays, the others float32 numbers."""

@@ -1,0 +1,261 @@
+"""Evaluation on the JAX device: [`heartpole.evaluate`][heartpole.evaluation.evaluate]'s estimator, its episodes
+played in one compiled call.
+
+[`evaluate`][heartpole.jax.evaluation.evaluate] takes ``heartpole.evaluate``'s arguments and returns its
+[`EvaluationResult`][heartpole.evaluation.EvaluationResult] (the same JSON): the expected-risk return, the regret
+against the optimum, the oracle regret under ``people``, the 95% intervals and the per-episode values. Its episodes
+are the NumPy evaluation's: each chunk of episodes starts where ``heartpole.evaluate``'s vector env starts (the same
+reset seed, the same people) and every step draws from the same generator states
+([`heartpole.rng`][heartpole.rng]), so a deterministic policy plays the same episodes on both engines, up to
+float32 rounding (``exp`` is each backend's own). [`evaluate_batch`][heartpole.jax.evaluation.evaluate_batch]
+evaluates a batch of networks (one per seed, say) in one call, each on the same episodes.
+
+A policy is a built-in name (`heartpole.jax.policies`) or a function of a batch of observations ``(n, obs_dim)``
+returning ``(n,)`` integer actions, traceable by JAX; one with a true ``needs_decisions_left`` attribute is called
+as ``policy(obs, decisions_left)``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from heartpole.evaluation import (
+    DEFAULT_EPISODES,
+    DEFAULT_NUM_ENVS,
+    Episodes,
+    EvaluationResult,
+    chunk_seed,
+    optimum_or_reason,
+    summarise,
+)
+from heartpole.jax.env import MODEL, RNG, EnvParams, EnvState, HeartPoleJax
+from heartpole.jax.policies import Act, builtin_act
+from heartpole.model import TIME_ELAPSED, WORK_DONE, check_integer
+from heartpole.policies import policy_name
+from heartpole.rewards import expected_risk
+from heartpole.rng import COUNTER, KEY_HIGH, KEY_LOW
+from heartpole.rollout import base_env, episode_people, vector_env
+from heartpole.truth import people_truth
+
+JaxPolicy = Callable[..., jax.Array]
+"""A JAX policy: ``policy(obs) -> actions`` (``(n, obs_dim)`` float32 to ``(n,)`` integers), or
+``policy(obs, decisions_left)`` where it has a true ``needs_decisions_left`` attribute."""
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where the episodes of an evaluation start: the NumPy evaluation's vector envs after their resets, every
+    chunk's envs one after the other. ``variables`` ``(num_variables, episodes)`` float32, ``generators``
+    ``(3, episodes)`` uint32 (`heartpole.rng`'s rows), ``person`` ``(episodes,)`` int64 (-1 without people)."""
+
+    variables: np.ndarray
+    generators: np.ndarray
+    person: np.ndarray
+    max_steps: int
+    chunk: int
+
+    @classmethod
+    def of(cls, env_id: str, env_kwargs: Mapping[str, Any], episodes: int, seed: int, chunk: int) -> Start:
+        """The starts of ``episodes`` episodes of ``seed`` in chunks of ``chunk``, as ``heartpole.evaluate``'s."""
+        parts = []
+        for index, first in enumerate(range(0, episodes, chunk)):
+            with vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
+                _, info = env.reset(seed=chunk_seed(seed, index))
+                base = base_env(env)
+                person = episode_people(info)
+                person = np.full(env.num_envs, -1, dtype=np.int64) if person is None else person
+                parts.append((base.state, base.generators, person, int(base.max_steps)))
+        variables, generators, person, steps = zip(*parts)
+        return cls(np.concatenate(variables, 1), np.concatenate(generators, 1), np.concatenate(person), steps[0], chunk)
+
+
+class Totals(NamedTuple):
+    """Per-episode sums carried through a rollout (float32 sums with Kahan's compensation, so 1,000 steps add up
+    as NumPy's float64 sums do to about 1e-6)."""
+
+    returns: jax.Array
+    returns_error: jax.Array
+    risks: jax.Array
+    risks_error: jax.Array
+    attacks: jax.Array
+    drinks: jax.Array
+    sleeps: jax.Array
+
+
+def _kahan(total: jax.Array, error: jax.Array, value: jax.Array) -> tuple[jax.Array, jax.Array]:
+    corrected = value - error
+    new = total + corrected
+    return new, (new - total) - corrected
+
+
+def rollout(env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: jax.Array) -> tuple[Totals, jax.Array]:
+    """Every episode of ``start`` played to its end by ``act``, drawing from its generator state: ``(totals,
+    scores)``, the per-episode `Totals` and final scores. Traceable: ``jit`` it (and ``vmap`` over ``act``'s
+    parameters to evaluate several policies at once)."""
+    n, num_variables = start.person.shape[0], env.num_variables
+    zeros = (jnp.float32(0.0),) * num_variables
+    drinks = jnp.asarray([a.is_drink for a in env.dynamics.actions], dtype=jnp.int32)
+    sleeps = jnp.asarray([a.sleeps for a in env.dynamics.actions], dtype=jnp.int32)
+    person = jnp.asarray(start.person, dtype=jnp.int32)
+    values = _person_values(env, person)
+    state = EnvState(
+        variables=tuple(jnp.asarray(start.variables[v]) for v in range(num_variables)),
+        time=jnp.zeros(n, jnp.int32),
+        person=person,
+        person_values=values,
+        seen=jnp.zeros((n, 0), jnp.float32),
+        age=jnp.zeros(n, jnp.float32),
+    )
+    key_low, key_high = (jnp.asarray(start.generators[row]) for row in (KEY_LOW, KEY_HIGH))
+
+    def one_draw(low: jax.Array, high: jax.Array, counter: jax.Array) -> tuple[jax.Array, ...]:
+        return tuple(RNG.draws(low, high, counter, zeros))
+
+    draw = jax.vmap(one_draw)
+    advance = jax.vmap(env.advance, in_axes=(None, 0, 0, None, 0))
+    observe = jax.vmap(env.get_obs)
+
+    def step(
+        carry: tuple[EnvState, jax.Array, Totals], t: jax.Array
+    ) -> tuple[tuple[EnvState, jax.Array, Totals], None]:
+        state, counter, totals = carry
+        actions = act(observe(state), start.max_steps - t, person, jax.random.fold_in(key, t))
+        uniforms = draw(key_low, key_high, counter)
+        _, state, reward, _, info = advance(key, state, actions, params, uniforms)
+        returns, returns_error = _kahan(totals.returns, totals.returns_error, reward)
+        risks, risks_error = _kahan(totals.risks, totals.risks_error, info["heart_attack_risk"])
+        totals = Totals(returns, returns_error, risks, risks_error, totals.attacks + info["heart_attack"],
+                        totals.drinks + drinks[actions], totals.sleeps + sleeps[actions])  # fmt: skip
+        return (state, counter + jnp.uint32(1), totals), None
+
+    floats, ints = jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32)
+    counter = jnp.asarray(start.generators[COUNTER])
+    carry = (state, counter, Totals(floats, floats, floats, floats, ints, ints, ints))
+    (state, _, totals), _ = jax.lax.scan(step, carry, jnp.arange(start.max_steps, dtype=jnp.int32))
+    return totals, MODEL.score(state.variables[WORK_DONE], state.variables[TIME_ELAPSED])
+
+
+def _person_values(env: HeartPoleJax, person: jax.Array) -> jax.Array:
+    """Each env's person's values (a cohort's row), or none without people."""
+    if env.population is None:
+        return jnp.zeros((person.shape[0], 0), jnp.float32)
+    cohort = env.population.cohort_values
+    if cohort is None:
+        raise ValueError(
+            "heartpole.jax.evaluate plays the people of a cohort (people='default' or People(cohort=[...])); a "
+            "distribution's people are drawn by the NumPy env: evaluate them with heartpole.evaluate"
+        )
+    return cohort[person]
+
+
+def _act(policy: str | JaxPolicy, env_id: str, env_kwargs: Mapping[str, Any]) -> tuple[Act, str]:
+    """``policy`` as an `Act` and its display name."""
+    if isinstance(policy, str):
+        return builtin_act(policy, env_id, env_kwargs), policy
+    if not callable(policy):
+        raise ValueError(f"policy must be a JAX function of observation batches or a built-in name, got {policy!r}")
+    wants_left = bool(getattr(policy, "needs_decisions_left", False))
+
+    def act(obs: jax.Array, left: jax.Array, person: jax.Array, key: jax.Array) -> jax.Array:
+        actions = policy(obs, left) if wants_left else policy(obs)
+        return jnp.asarray(actions).astype(jnp.int32)
+
+    return act, policy_name(policy)
+
+
+def evaluate(
+    policy: str | JaxPolicy,
+    env_id: str = "HeartPole-v0",
+    episodes: int = DEFAULT_EPISODES,
+    seed: int = 0,
+    *,
+    num_envs: int | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    regret: bool = True,
+) -> EvaluationResult:
+    """[`heartpole.evaluate`][heartpole.evaluation.evaluate] of a JAX policy, its episodes played on the JAX device
+    in one compiled call; the arguments and the result are ``heartpole.evaluate``'s, and so, for a deterministic
+    policy, are the episodes (``num_envs`` fixes the chunks whose seeds start them, as there).
+
+    Raises:
+        ValueError: bad arguments, an unknown built-in, an env with ``measurement`` (its noise is the NumPy
+            env's) or with a distribution of people.
+
+    >>> from heartpole.jax import evaluate
+    >>> result = evaluate("expert", episodes=20, env_kwargs={"max_steps": 100})
+    >>> result.policy, result.episodes, result.max_steps
+    ('expert', 20, 100)
+    """
+    return evaluate_batch(policy, None, env_id, episodes, seed, num_envs=num_envs, env_kwargs=env_kwargs,
+                          regret=regret)[0]  # fmt: skip
+
+
+def evaluate_batch(
+    policy: str | JaxPolicy,
+    batch: Any,
+    env_id: str = "HeartPole-v0",
+    episodes: int = DEFAULT_EPISODES,
+    seed: int = 0,
+    *,
+    num_envs: int | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    regret: bool = True,
+    names: list[str] | None = None,
+) -> list[EvaluationResult]:
+    """`evaluate` of ``policy(batch[i], obs)`` for every ``i`` along the first axis of the pytree ``batch`` (a
+    batch of seeds' networks, say), all in one compiled call and each on the same episodes; ``batch=None``
+    evaluates ``policy`` itself once. ``names`` name the results (default: the policy's name, with ``[i]``)."""
+    episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
+    chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
+    env_kwargs = dict(env_kwargs or {})
+    if env_kwargs.get("measurement") is not None:
+        raise ValueError(
+            "heartpole.jax.evaluate plays envs without measurement (a measured env's noise is the NumPy env's own): "
+            "evaluate it with heartpole.evaluate"
+        )
+    env = HeartPoleJax.from_id(env_id, **env_kwargs)
+    truth = people_truth(env_id, env_kwargs) if regret else None
+    solution = optimum_or_reason(env_id, env_kwargs) if regret else None
+    start = Start.of(env_id, env_kwargs, episodes, seed, chunk)
+    started = time.perf_counter()
+    key = jax.random.key(seed)
+    if batch is None:
+        act, name = _act(policy, env_id, env_kwargs)
+        totals, scores = jax.jit(lambda: rollout(env, env.default_params, act, start, key))()
+        totals, scores, labels = jax.tree_util.tree_map(lambda x: x[None], (totals, scores)) + ([name],)
+    else:
+        name = policy if isinstance(policy, str) else policy_name(policy)
+
+        def one(weights: Any) -> tuple[Totals, jax.Array]:
+            act, _ = _act(lambda obs: policy(weights, obs), env_id, env_kwargs)  # type: ignore[operator]
+            return rollout(env, env.default_params, act, start, key)
+
+        totals, scores = jax.jit(jax.vmap(one))(batch)
+        labels = names or [f"{name}[{i}]" for i in range(int(scores.shape[0]))]
+    totals, scores = jax.device_get((totals, scores))
+    seconds = (time.perf_counter() - started) / len(labels)
+    penalty = env.dynamics.params.heart_attack_penalty
+    results = []
+    for i, label in enumerate(labels):
+        score = np.asarray(scores[i], dtype=np.float64)
+        risks = np.asarray(totals.risks[i], dtype=np.float64)
+        found = Episodes(
+            returns=np.asarray(totals.returns[i], dtype=np.float64),
+            expected_returns=expected_risk(score, risks, penalty),
+            scores=score,
+            heart_attacks=np.asarray(totals.attacks[i], dtype=np.int64),
+            expected_heart_attacks=risks,
+            drinks=np.asarray(totals.drinks[i], dtype=np.int64),
+            sleeps=np.asarray(totals.sleeps[i], dtype=np.int64),
+            person=start.person,
+        )
+        about = {"policy": label, "env_id": env_id, "seed": seed, "num_envs": chunk, "max_steps": start.max_steps}
+        results.append(summarise(found, truth, solution, seconds=seconds, **about))
+    return results
