@@ -1,21 +1,27 @@
-"""Raw stepping speed of HeartPole's JAX env, beside gymnax's CartPole (when gymnax is installed) and
-the NumPy vector envs, measured in one run on this machine's CPU.
+"""Raw stepping speed of HeartPole's JAX env against gymnax's CartPole, at several sizes, in one run on whatever
+device JAX has (a GPU where JAX finds one, else the CPU).
 
-    python benchmarks/jax_speed.py                    # 1,024 envs x 1,000 steps, median of 5
-    python benchmarks/jax_speed.py --envs 4096 --repeats 3
+    python benchmarks/jax_speed.py                                   # 1,024 and 16,384 envs, median of 3
+    python benchmarks/jax_speed.py --envs 1024 16384 262144 1048576 4194304 --steps 100   # a GPU's table
+    python benchmarks/jax_speed.py --envs 16384 --numpy              # + the NumPy vector envs (CPU)
+    python benchmarks/jax_speed.py --fusions                         # + XLA's fused kernels in one step
 
-JAX envs run as their users run them: ``jit(vmap(step))`` over all envs, ``lax.scan`` over the steps,
-random actions drawn inside the compiled loop, autoreset on. The NumPy vector envs (HeartPole's native
-one and Gymnasium's ``CartPoleVectorEnv``) step with actions drawn before timing. Compile time is
-reported apart and not counted. gymnax pins ``gymnasium<1.4``, so it is not part of HeartPole's extras:
-install it in a separate virtualenv to get its column (see docs/jax.md).
+JAX envs run as their users run them: ``jit(vmap(step))`` over all envs, ``lax.scan`` over the steps, random
+actions drawn inside the compiled loop, autoreset on. Columns: HeartPole-v0, HeartPole-v0 with
+``people="default"``, and gymnax's CartPole-v1 when gymnax is installed, with the ratio HeartPole / CartPole
+measured in the same process. Compile time is not counted. gymnax pins ``gymnasium<1.4``, so it is not part of
+HeartPole's extras: ``bash scripts/test_gymnax.sh --setup-only`` builds ``.venv-gymnax``, where this script runs
+with gymnax (see docs/jax.md). ``--numpy`` adds HeartPole's native vector env (numba) and Gymnasium's
+``CartPoleVectorEnv``, stepped with actions drawn before timing.
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import statistics
 import time
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -27,8 +33,8 @@ import heartpole
 from heartpole.jax import make
 
 
-def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int) -> tuple[float, float]:
-    """(steps per second, compile seconds) of a gymnax-API env stepped ``num_envs`` wide for ``steps``."""
+def stepper(env: Any, params: Any, num_envs: int, steps: int) -> Callable[[jax.Array], jax.Array]:
+    """``run(key)``: reset ``num_envs`` envs and step them ``steps`` times with random actions (autoreset on)."""
     step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
 
     def run(key: jax.Array) -> jax.Array:
@@ -44,15 +50,30 @@ def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int
         (_, total), _ = jax.lax.scan(body, (state, jnp.float32(0.0)), jax.random.split(key, steps))
         return total
 
-    started = time.perf_counter()
-    compiled = jax.jit(run).lower(jax.random.key(0)).compile()
-    compile_seconds = time.perf_counter() - started
+    return run
+
+
+def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int) -> float:
+    """Steps per second of a gymnax-API env stepped ``num_envs`` wide for ``steps`` (median of ``repeats``)."""
+    compiled = jax.jit(stepper(env, params, num_envs, steps)).lower(jax.random.key(0)).compile()
+    compiled(jax.random.key(0)).block_until_ready()  # the first call may load or allocate
     times = []
     for repeat in range(repeats):
         started = time.perf_counter()
         compiled(jax.random.key(repeat + 1)).block_until_ready()
         times.append(time.perf_counter() - started)
-    return num_envs * steps / statistics.median(times), compile_seconds
+    return num_envs * steps / statistics.median(times)
+
+
+def fusions(env: Any, params: Any, num_envs: int) -> int:
+    """How many fused kernels XLA makes of one vmapped step (the body of the loop a training or rollout runs)."""
+    step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
+    _, state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.key(0), num_envs), params)
+    keys = jax.random.split(jax.random.key(1), num_envs)
+    actions = jnp.zeros(num_envs, jnp.int32)
+    text = jax.jit(step).lower(keys, state, actions, params).compile().as_text()
+    entry = text[text.index("ENTRY") :]
+    return len(re.findall(r"= \S+ fusion\(", entry))
 
 
 def numpy_vector_speed(make_envs: Any, num_envs: int, steps: int, repeats: int) -> float:
@@ -70,38 +91,54 @@ def numpy_vector_speed(make_envs: Any, num_envs: int, steps: int, repeats: int) 
     return num_envs * steps / statistics.median(times)
 
 
-def main() -> None:
-    """Measure and print a Markdown table."""
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--envs", type=int, default=1024, help="envs stepped side by side (default 1024)")
-    parser.add_argument("--steps", type=int, default=1000, help="steps per run (default 1000)")
-    parser.add_argument("--repeats", type=int, default=5, help="timed runs; the median is reported (default 5)")
-    args = parser.parse_args()
-    n, steps, repeats = args.envs, args.steps, args.repeats
-    rows: list[tuple[str, float, float | None]] = []
-    env, params = make("HeartPole-v0")
-    rows.append(("HeartPole-v0, heartpole.jax (jit, vmap, scan)", *jax_env_speed(env, params, n, steps, repeats)))
+def envs_to_measure() -> list[tuple[str, Any, Any]]:
+    """(column, env, params): HeartPole-v0, with the default people, and gymnax's CartPole-v1 if installed."""
+    columns = [("HeartPole-v0", *make("HeartPole-v0")), ('people="default"', *make("HeartPole-v0", people="default"))]
     try:
         import gymnax
     except ImportError:
-        print("gymnax is not installed here: no gymnax CartPole column")
+        print("gymnax is not installed here: no CartPole-v1 column (see docs/jax.md)")
     else:
         from importlib.metadata import version
 
-        cartpole, cartpole_params = gymnax.make("CartPole-v1")
-        rows.append((f"CartPole-v1, gymnax {version('gymnax')} (jit, vmap, scan)",
-                     *jax_env_speed(cartpole, cartpole_params, n, steps, repeats)))  # fmt: skip
-    with heartpole.policies.quiet_version_warnings():
-        native = lambda k: gym.make_vec("HeartPole-v0", num_envs=k, vectorization_mode="vector_entry_point")  # noqa: E731
-        rows.append(("HeartPole-v0, NumPy vector env (numba)", numpy_vector_speed(native, n, steps, repeats), None))
-    cartpole_np = lambda k: gym.make_vec("CartPole-v1", num_envs=k, vectorization_mode="vector_entry_point")  # noqa: E731
-    rows.append(("CartPole-v1, Gymnasium CartPoleVectorEnv", numpy_vector_speed(cartpole_np, n, steps, repeats), None))
-    print(f"\n{n} envs x {steps} steps, median of {repeats}; jax {jax.__version__}, "
-          f"gymnasium {gym.__version__}, devices {jax.devices()}\n")  # fmt: skip
-    print("| env | steps/s | compile (s) |\n|---|---:|---:|")
-    for name, speed, compile_seconds in rows:
-        compiled = "" if compile_seconds is None else f"{compile_seconds:.1f}"
-        print(f"| {name} | {speed / 1e6:.1f} M | {compiled} |")
+        columns.append((f"CartPole-v1 (gymnax {version('gymnax')})", *gymnax.make("CartPole-v1")))
+    return columns
+
+
+def main() -> None:
+    """Measure and print one Markdown table: a row per size."""
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--envs", type=int, nargs="+", default=[1024, 16384], help="sizes (default 1024 16384)")
+    parser.add_argument("--steps", type=int, default=1000, help="steps per timed run (default 1000)")
+    parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (default 3)")
+    parser.add_argument("--numpy", action="store_true", help="add the NumPy vector envs (CPU) at every size")
+    parser.add_argument("--fusions", action="store_true", help="print XLA's fused kernels in one vmapped step")
+    args = parser.parse_args()
+    if min(args.envs) < 1 or args.steps < 1 or args.repeats < 1:
+        parser.error("--envs, --steps and --repeats must be positive")
+    columns = envs_to_measure()
+    if args.fusions:
+        for name, env, params in columns:
+            print(f"{name}: {fusions(env, params, args.envs[0])} fused kernels in one vmapped step")
+    header = ["envs", *(name for name, _, _ in columns)]
+    if len(columns) == 3:
+        header += ["HeartPole / CartPole", "people / v0"]
+    if args.numpy:
+        header += ["HeartPole-v0 NumPy (numba)", "CartPoleVectorEnv"]
+    print(f"\n{args.steps} steps a run, median of {args.repeats}; jax {jax.__version__}, devices {jax.devices()}\n")
+    print("| " + " | ".join(header) + " |\n|" + "---:|" * len(header))
+    for n in args.envs:
+        speeds = [jax_env_speed(env, params, n, args.steps, args.repeats) for _, env, params in columns]
+        cells = [f"{n:,}", *(f"{s / 1e6:,.1f} M" for s in speeds)]
+        if len(columns) == 3:
+            cells += [f"{speeds[0] / speeds[2]:.2f}", f"{speeds[1] / speeds[0]:.2f}"]
+        if args.numpy:
+            with heartpole.policies.quiet_version_warnings():
+                native = lambda k: gym.make_vec("HeartPole-v0", num_envs=k, vectorization_mode="vector_entry_point")  # noqa: E731
+                cells.append(f"{numpy_vector_speed(native, n, args.steps, args.repeats) / 1e6:,.1f} M")
+            cartpole = lambda k: gym.make_vec("CartPole-v1", num_envs=k, vectorization_mode="vector_entry_point")  # noqa: E731
+            cells.append(f"{numpy_vector_speed(cartpole, n, args.steps, args.repeats) / 1e6:,.1f} M")
+        print("| " + " | ".join(cells) + " |", flush=True)
 
 
 if __name__ == "__main__":

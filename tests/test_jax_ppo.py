@@ -18,6 +18,7 @@ import jax.numpy as jnp  # noqa: E402
 
 from heartpole import plots, training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
+from heartpole.evaluation import evaluate  # noqa: E402
 from heartpole.jax import export, ppo  # noqa: E402
 from heartpole.policies import load_policy  # noqa: E402
 
@@ -132,6 +133,14 @@ def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> Non
         assert policy(np.zeros((3, 6), np.float32)).shape == (3,)
     code = main(["evaluate", "--policy", str(tmp_path / "seed_0" / "model.zip"), "--episodes", "10"])
     assert code == 0 and "seed_0" in capsys.readouterr().out
+    # evaluation.json (every seed evaluated on the device in one call) is heartpole evaluate's of the saved model
+    for seed in (0, 1):
+        saved = str(tmp_path / f"seed_{seed}" / "model.zip")
+        on_device = json.loads((tmp_path / f"seed_{seed}" / "evaluation.json").read_text())
+        numpy = evaluate(saved, episodes=20, seed=0, env_kwargs={"max_steps": 64}).to_dict()
+        assert on_device["policy"] == saved and on_device["episodes"] == numpy["episodes"] == 20
+        for column in ("expected_return", "score", "heart_attacks_per_episode", "sleeps_per_episode"):
+            assert abs(on_device[column] - numpy[column]) <= 1e-4, (seed, column, on_device[column], numpy[column])
 
 
 @pytest.mark.slow
