@@ -71,15 +71,14 @@ def test_a_cohort_member_runs_on_exactly_their_params() -> None:
 
 
 def test_a_cohort_of_one_steps_exactly_as_that_persons_env() -> None:
-    """Where the keys allow (the person is drawn from a key split off the reset key), a cohort of one is the
-    env made with that person's values: the same reset from the same wake-up key, the same steps."""
+    """A cohort of one is the env made with that person's values: the same reset from the same key (a cohort's
+    person is picked by a uniform apart from the wake-up one), the same steps."""
     cleo = People.default().cohort[2]
     env, params = make("HeartPole-v0", people=People(cohort=[cleo]), max_steps=40)
     own, own_params = make("HeartPole-v0", max_steps=40, **cleo.values())
     key = jax.random.key(5)
     obs, state = env.reset(key, params)
-    wake_key, _ = jax.random.split(key)
-    own_obs, own_state = own.reset(wake_key, own_params)
+    own_obs, own_state = own.reset(key, own_params)
     np.testing.assert_array_equal(obs, own_obs)
     step, own_step = jax.jit(env.step_env), jax.jit(own.step_env)
     for t, step_key in enumerate(jax.random.split(jax.random.key(6), 40)):

@@ -59,6 +59,13 @@ RNG = rng.rebind(
 integers (which wrap around as the generator needs): the NumPy envs' uniforms, bit for bit."""
 
 
+RESET_DRAW = 1
+"""The draw of a step's generator key (`key_draw`) that the autoreset's next episode takes; the step takes 0."""
+NOISE = 1
+"""A step's measurement noise comes from its key folded with this; a reset from draw ``d`` folds the key with
+``2 + 2 * d`` for its noise and ``3 + 2 * d`` for a distribution's person (`HeartPoleJax._reset_from`)."""
+
+
 def key_draw(key: jax.Array) -> tuple[jax.Array, jax.Array]:
     """One 64-bit draw of ``key`` as a generator key's two uint32 halves, whose counter-0 uniforms a gymnax
     step (or reset) uses: one threefry call instead of one per uniform."""
@@ -249,13 +256,18 @@ class HeartPoleJax:
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams | None = None
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
         """One decision and the half-hour after it: ``(obs, state, reward, terminated, truncated, info)``;
-        an episode that reaches its step limit restarts at once."""
+        an episode that reaches its step limit restarts at once.
+
+        All its randomness comes from one 64-bit draw of ``key`` (`key_draw`): the step's uniforms are that
+        generator key's draw 0 (as `step_env`'s), the next episode's (its person, its waking up) draw
+        `RESET_DRAW`; one threefry call a step instead of a split and a call for each part."""
         params = self.default_params if params is None else params
-        key_step, key_reset = jax.random.split(key)
-        obs_step, state_step, reward, terminated, info = self.step_env(key_step, state, action, params)
+        action = self.check_action(action)
+        low, high = key_draw(key)
+        obs_step, state_step, reward, terminated, info = self._step_from(key, low, high, state, action, params)
         truncated = self.is_truncated(state_step, params)
         done = jnp.logical_or(terminated, truncated)
-        obs_reset, state_reset = self.reset_env(key_reset, params)
+        obs_reset, state_reset = self._reset_from(key, low, high, RESET_DRAW, params)
         state = jax.tree_util.tree_map(lambda new, old: jnp.where(done, new, old), state_reset, state_step)
         obs = jnp.where(done, obs_reset, obs_step)
         info = {**info, "terminated": terminated, "truncated": truncated, "final_observation": obs_step}
@@ -263,13 +275,22 @@ class HeartPoleJax:
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
         """[`initial_state`][heartpole.model.initial_state] with the wake-up uniform of one draw of ``key``;
-        with people, the episode's person is drawn first (from a key split off ``key``) and wakes up by their
-        own params."""
+        with people, the episode's person is drawn first and wakes up by their own params."""
+        return self._reset_from(key, *key_draw(key), 0, params)
+
+    def _reset_from(
+        self, key: jax.Array, low: jax.Array, high: jax.Array, draw: int, params: EnvParams
+    ) -> tuple[jax.Array, EnvState]:
+        """`reset_env` from draw ``draw`` of the generator key ``(low, high)``: its wake-up uniform wakes the
+        person up, the uniform after it picks a cohort's person (`NOISE` says how ``key`` is folded for a
+        distribution's person and the first measurement)."""
+        n = self.num_variables
         person, values = jnp.int32(-1), jnp.zeros(0, jnp.float32)
         if self.population is not None:
-            key, person_key = jax.random.split(key)
-            person, values = self.population.draw(person_key)
-        return self.start(key, person, values, RNG.wake_uniform(*key_draw(key), 0, self.num_variables), params)
+            chooser = RNG.uniform(low, high, draw, n + 1)
+            person, values = self.population.draw(jax.random.fold_in(key, 3 + 2 * draw), chooser)
+        noise_key = jax.random.fold_in(key, 2 + 2 * draw)
+        return self.start(noise_key, person, values, RNG.wake_uniform(low, high, draw, n), params)
 
     def start(
         self, key: jax.Array, person: jax.Array, values: jax.Array, uniform: jax.Array, params: EnvParams
@@ -282,7 +303,7 @@ class HeartPoleJax:
         state = dataclasses.replace(state, variables=_floats(MODEL.initial_state(zeros, uniform, tables)))
         if self.sensor is not None:
             state = dataclasses.replace(state, seen=jnp.stack(state.variables))
-            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, jnp.float32(jnp.inf))
+            state = self._measure(self.sensor, key, state, jnp.float32(jnp.inf))
         return self.get_obs(state), state
 
     def step_env(
@@ -296,16 +317,21 @@ class HeartPoleJax:
         concrete, and ``TypeError`` for a non-integer dtype; under ``jit`` an out-of-range integer changes
         nothing (the state is returned as it was, the reward is 0) and ``info["invalid_action"]`` is true.
         """
-        action = self.check_action(action)
-        zeros = (jnp.float32(0.0),) * self.num_variables
-        uniforms = RNG.draws(*key_draw(key), jnp.uint32(0), zeros)
-        return self.advance(key, state, action, params, uniforms)
+        return self._step_from(key, *key_draw(key), state, self.check_action(action), params)
+
+    def _step_from(
+        self, key: jax.Array, low: jax.Array, high: jax.Array, state: EnvState, action: jax.Array, params: EnvParams
+    ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
+        """`step_env` with draw 0 of the generator key ``(low, high)``."""
+        uniforms = RNG.draws(low, high, jnp.uint32(0), (jnp.float32(0.0),) * self.num_variables)
+        return self.advance(jax.random.fold_in(key, NOISE), state, action, params, uniforms)
 
     def advance(
         self, key: jax.Array, state: EnvState, action: jax.Array, params: EnvParams, uniforms: tuple[jax.Array, ...]
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
         """`step_env` with its ``uniforms`` given (a rollout on the NumPy envs' generator states draws them
-        itself); ``key`` draws the measurement's noise. ``action`` is an int32 that `check_action` passed."""
+        itself); ``key`` draws the measurement's noise (with ``measurement``). ``action`` is an int32 that
+        `check_action` passed."""
         valid = (action >= 0) & (action < self._num_actions)
         mine = self.person_params(state, params)
         old = state.variables
@@ -315,7 +341,7 @@ class HeartPoleJax:
         state = dataclasses.replace(state, variables=new, time=state.time + valid.astype(jnp.int32))
         if self.sensor is not None:
             passed = new[TIME_ELAPSED] - old[TIME_ELAPSED]
-            state = self._measure(self.sensor, jax.random.fold_in(key, 1), state, passed)
+            state = self._measure(self.sensor, key, state, passed)
         info = {
             "discount": self.discount(state, params),
             "heart_attack": attack & valid,

@@ -89,12 +89,14 @@ class Population:
         # step_tables calls ``number`` on every number it makes, which is all _element needs of a type
         return step_tables(self.dynamics.actions, self.dynamics.variables, person, number=cast(type, _element))
 
-    def draw(self, key: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """One person from ``key``: ``(person, values)``, the cohort index (int32, -1 for a distribution) and
-        the ``(len(columns),)`` float32 values. A cohort's people have equal chances; a distribution draws
-        each uniform field in its range (integers with both ends included) and keeps each fixed one."""
+    def draw(self, key: jax.Array, uniform: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """One person: ``(person, values)``, the cohort index (int32, -1 for a distribution) and the
+        ``(len(columns),)`` float32 values. A cohort's person is ``floor(uniform * len(cohort))`` (``uniform`` in
+        [0, 1) on a grid of ``2 ** -24``: equal chances to 1e-6); a distribution draws each uniform field in its
+        range from ``key`` (integers with both ends included) and keeps each fixed one."""
         if self._cohort_values is not None:
-            person = jax.random.randint(key, (), 0, len(self.people.cohort), dtype=jnp.int32)
+            size = len(self.people.cohort)
+            person = jnp.minimum((uniform * size).astype(jnp.int32), size - 1)
             return person, self._cohort_values[person]
         keys = jax.random.split(key, len(self.people.fields))
         columns = [_draw_field(k, field, spec) for k, (field, spec) in zip(keys, self.people.fields)]
