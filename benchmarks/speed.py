@@ -59,10 +59,11 @@ SINGLE_GOALS = {"HeartPole-v0": 3.0, "make:HeartPole-v0": 2.5}
 
 def warm_up(env: str) -> bool:
     """Make ``env`` (a name of `SINGLE_ENVS` or `VECTOR_ENVS`), reset and step it, so that its compiled loops are
-    loaded or compiled into the cache; ``False`` if this heartpole does not have it (an unknown keyword)."""
+    loaded or compiled into the cache; ``False`` if this heartpole does not have it (an older commit refuses an
+    unknown keyword with ``TypeError`` or ``ValueError``)."""
     try:
         made = SINGLE_ENVS[env]() if env in SINGLE_ENVS else VECTOR_ENVS[env](4)
-    except TypeError:
+    except (TypeError, ValueError):
         return False
     made.reset(seed=0)
     space = made.action_space if env in SINGLE_ENVS else made.single_action_space
