@@ -8,7 +8,9 @@ Both trees are measured by this file's code in fresh Python processes, each impo
 sources (``PYTHONPATH=<tree>/src`` with this interpreter; numba caches its compiled loops beside each
 tree's sources, and a warm-up process per tree fills that cache before any timing). Each measurement is a
 ratio to its anchor measured in the same process, anchor-subject-anchor (the subject's rate over the
-geometric mean of the two anchors', so that a load that rises or falls during the process cancels): the
+geometric mean of the two anchors', so that a load that rises or falls during the process cancels), timed
+in the process's CPU time by default (``--clock wall`` for wall time: the same on a quiet machine; on a
+shared one, CPU time leaves out the time the process waited for a core): the
 single env against Gymnasium's ``CartPoleEnv``, the vector env against ``CartPoleVectorEnv``, the people's
 vector env against the same tree's own v0. A round measures every measure once in each tree, the two trees
 in turn (this tree first in even rounds, REV first in odd ones); the report gives each tree's ratios and the
@@ -40,6 +42,7 @@ TREE = HERE.parent
 """The tree this file belongs to: its sources are "this tree"."""
 
 MEASURE_KINDS = ("single", "make", "vector", "people")
+CLOCKS = ("cpu", "wall")  # speed.CLOCKS' names: this module imports speed (and heartpole) only in its children
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,9 @@ class Config:
     env_steps: int = field(
         default=6_000_000, metadata={"help": "env-steps of a vector measurement (steps: this over the envs, 30-3000)"}
     )
+    clock: str = field(
+        default="cpu", metadata={"help": "time rates in the process's CPU time (cpu) or wall time (wall)"}
+    )
 
     def __post_init__(self) -> None:
         for name in ("rounds", "people_size", "single_steps", "env_steps"):
@@ -68,6 +74,8 @@ class Config:
                 raise ValueError(f"--{_option(name)} must be an integer >= 1, got {value!r}")
         if not self.sizes or any(type(n) is not int or n < 1 for n in self.sizes):
             raise ValueError(f"--sizes must be integers >= 1, got {list(self.sizes)!r}")
+        if self.clock not in CLOCKS:
+            raise ValueError(f"--clock must be one of {' '.join(CLOCKS)}, got {self.clock!r}")
         unknown = [kind for kind in self.measures if kind not in MEASURE_KINDS]
         if unknown or not self.measures:
             raise ValueError(f"--measures must be some of {' '.join(MEASURE_KINDS)}, got {' '.join(self.measures)!r}")
@@ -117,6 +125,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             extra = {"nargs": "+", "type": type(default[0]), "default": list(default)}
             if item.name == "measures":
                 extra["choices"] = MEASURE_KINDS
+        elif item.name == "clock":
+            extra = {"type": str, "default": default, "choices": CLOCKS}
         else:
             extra = {"type": int if isinstance(default, int) else str, "default": default}
         metavar = "REV" if item.name == "against" else None
@@ -150,6 +160,7 @@ class Tree:
 
     label: str
     root: Path
+    clock: str
     available: set[str] = field(default_factory=set)
     ratios: dict[str, list[float]] = field(default_factory=dict)
     rates: dict[str, list[float]] = field(default_factory=dict)
@@ -170,7 +181,7 @@ class Tree:
         """One measurement in a fresh process, kept (nothing if the tree lacks its envs)."""
         if measure.subject not in self.available or measure.anchor not in self.available:
             return
-        arguments = (measure.subject, measure.anchor, str(measure.num_envs), str(measure.steps))
+        arguments = (measure.subject, measure.anchor, str(measure.num_envs), str(measure.steps), self.clock)
         answer = self.child("--pair", *arguments)
         ratio = answer["subject"] / math.sqrt(answer["anchors"][0] * answer["anchors"][1])
         self.ratios.setdefault(measure.label, []).append(ratio)
@@ -236,7 +247,7 @@ def compare(config: Config) -> None:
 def measure_both(config: Config, commit: str, head: str) -> tuple[list[Measure], list[Tree]]:
     """Every round of ``config`` in this tree and in a worktree of ``commit``: the plan and the trees measured."""
     with worktree(commit) as path:
-        trees = [Tree(f"this tree ({head})", TREE), Tree(f"{config.against}", path)]
+        trees = [Tree(f"this tree ({head})", TREE, config.clock), Tree(config.against, path, config.clock)]
         plan = config.plan()
         print(_machine(trees[0]), flush=True)
         for tree in trees:
@@ -254,10 +265,10 @@ def measure_both(config: Config, commit: str, head: str) -> tuple[list[Measure],
     return plan, trees
 
 
-def _spread(values: Sequence[float], digits: int = 2) -> str:
+def _spread(values: Sequence[float], digits: int = 2, unit: str = "") -> str:
     if not values:
         return "n/a"
-    return f"{statistics.median(values):.{digits}f} ({min(values):.{digits}f}-{max(values):.{digits}f})"
+    return f"{statistics.median(values):.{digits}f}{unit} ({min(values):.{digits}f}-{max(values):.{digits}f})"
 
 
 def report(plan: list[Measure], trees: list[Tree]) -> None:
@@ -273,7 +284,7 @@ def report(plan: list[Measure], trees: list[Tree]) -> None:
         quotient = [x / y for x, y in zip(a, b)]
         rates = ", ".join(f"{statistics.median(t.rates[m.label]):,.0f}" if m.label in t.rates else "n/a" for t in trees)
         anchor = m.anchor.replace("HeartPoleVectorEnv", "own v0")
-        columns = (f"{_spread(a)}x", f"{_spread(b)}x", _spread(quotient, 3))
+        columns = (_spread(a, unit="x"), _spread(b, unit="x"), _spread(quotient, 3))
         print(f"{m.label:<30} {anchor:<19} " + " ".join(f"{c:<20}" for c in columns) + f" {rates}")
 
 
@@ -284,7 +295,7 @@ def _machine(tree: Tree) -> str:
 # ---------------------------------------------------------------------------------------------------------
 # The child processes: they import speed.py (which imports heartpole from the tree on PYTHONPATH).
 def child_main(arguments: list[str]) -> None:
-    """``--warm-up NAME...``, ``--pair SUBJECT ANCHOR NUM_ENVS STEPS`` or ``--machine``: one JSON line."""
+    """``--warm-up NAME...``, ``--pair SUBJECT ANCHOR NUM_ENVS STEPS CLOCK`` or ``--machine``: one JSON line."""
     import time
 
     import speed
@@ -297,10 +308,16 @@ def child_main(arguments: list[str]) -> None:
         file = speed.heartpole.__file__
         print(json.dumps({"available": available, "file": file, "seconds": time.perf_counter() - start}))
     elif arguments[0] == "--pair":
-        subject, anchor, num_envs, steps = arguments[1], arguments[2], int(arguments[3]), int(arguments[4])
-        first = speed.measure(anchor, num_envs, steps)
-        rate = speed.measure(subject, num_envs, steps)
-        last = speed.measure(anchor, num_envs, steps)
+        subject, anchor, num_envs, steps, clock = (
+            arguments[1],
+            arguments[2],
+            int(arguments[3]),
+            int(arguments[4]),
+            arguments[5],
+        )
+        first = speed.measure(anchor, num_envs, steps, clock=clock)
+        rate = speed.measure(subject, num_envs, steps, clock=clock)
+        last = speed.measure(anchor, num_envs, steps, clock=clock)
         print(json.dumps({"subject": rate, "anchors": [first, last]}))
     else:
         raise SystemExit(f"unknown child arguments {arguments!r}")

@@ -81,8 +81,14 @@ def machine_line() -> str:
     )
 
 
-def single_rate(make: Factory, steps: int, seed: int = 0) -> float:
-    """Steps per second of one env under random actions (reset when an episode ends)."""
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+"""The clocks a rate can be timed with: wall time, or this process's CPU time (on a shared machine, the time
+the process ran, not the time it waited for a core)."""
+
+
+def single_rate(make: Factory, steps: int, seed: int = 0, clock: str = "wall") -> float:
+    """Steps per second of one env under random actions (reset when an episode ends), timed with ``clock``."""
+    now = CLOCKS[clock]
     env = make()
     env.reset(seed=seed)
     actions = np.random.default_rng(seed).integers(0, env.action_space.n, size=steps).tolist()
@@ -92,38 +98,40 @@ def single_rate(make: Factory, steps: int, seed: int = 0) -> float:
         if terminated or truncated:
             reset()
     gc.disable()
-    start = time.perf_counter()
+    start = now()
     for action in actions:
         _, _, terminated, truncated, _ = step(action)
         if terminated or truncated:
             reset()
-    elapsed = time.perf_counter() - start
+    elapsed = now() - start
     gc.enable()
     return steps / elapsed
 
 
-def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0) -> float:
-    """Env-steps per second of a native vector env under random actions (it autoresets itself)."""
+def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0, clock: str = "wall") -> float:
+    """Env-steps per second of a native vector env under random actions (it autoresets itself), timed with
+    ``clock``."""
+    now = CLOCKS[clock]
     env = make()
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     actions = [rng.integers(0, env.single_action_space.n, size=num_envs) for _ in range(min(steps, 64))]
     for t in range(3):  # warm-up
         env.step(actions[t % len(actions)])
-    start = time.perf_counter()
+    start = now()
     for t in range(steps):
         env.step(actions[t % len(actions)])
-    return steps * num_envs / (time.perf_counter() - start)
+    return steps * num_envs / (now() - start)
 
 
-def measure(env: str, num_envs: int, steps: int, faults: bool = False) -> float:
+def measure(env: str, num_envs: int, steps: int, faults: bool = False, clock: str = "wall") -> float:
     """One measurement in this process: a single env when ``num_envs`` is 0, else a vector env (its page
-    faults a step with ``faults``)."""
+    faults a step with ``faults``), timed with ``clock``."""
     if faults:
         return page_faults(VECTOR_ENVS[env](num_envs), steps)
     if num_envs == 0:
-        return single_rate(SINGLE_ENVS[env], steps)
-    return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps)
+        return single_rate(SINGLE_ENVS[env], steps, clock=clock)
+    return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps, clock=clock)
 
 
 def fresh(
