@@ -4,6 +4,7 @@
     python benchmarks/speed.py --quick          # fewer repeats
     python benchmarks/speed.py --only vector    # one section: single, vector, people, blas, anatomy, flat, compile
     python benchmarks/speed.py --busy           # the same with a second CPU-bound process running
+    python benchmarks/speed.py --against REV    # this tree against commit REV, side by side (benchmarks/against.py)
 
 Every figure is a ratio against its anchor measured in the same run: HeartPole and CartPole are measured
 in turn, ``--repeats`` times, each time in a fresh Python process (the allocator's state left by one env
@@ -30,6 +31,7 @@ from contextlib import contextmanager
 from functools import partial
 from typing import Any
 
+import against  # benchmarks/against.py, beside this file
 import gymnasium as gym
 import numpy as np
 from gymnasium.envs.classic_control.cartpole import CartPoleEnv, CartPoleVectorEnv
@@ -55,8 +57,38 @@ V1_SIZE = 16384
 SINGLE_GOALS = {"HeartPole-v0": 3.0, "make:HeartPole-v0": 2.5}
 
 
-def single_rate(make: Factory, steps: int, seed: int = 0) -> float:
-    """Steps per second of one env under random actions (reset when an episode ends)."""
+def warm_up(env: str) -> bool:
+    """Make ``env`` (a name of `SINGLE_ENVS` or `VECTOR_ENVS`), reset and step it, so that its compiled loops are
+    loaded or compiled into the cache; ``False`` if this heartpole does not have it (an older commit refuses an
+    unknown keyword with ``TypeError`` or ``ValueError``)."""
+    try:
+        made = SINGLE_ENVS[env]() if env in SINGLE_ENVS else VECTOR_ENVS[env](4)
+    except (TypeError, ValueError):
+        return False
+    made.reset(seed=0)
+    space = made.action_space if env in SINGLE_ENVS else made.single_action_space
+    for action in range(space.n):
+        made.step(action if env in SINGLE_ENVS else np.full(4, action))
+    return True
+
+
+def machine_line() -> str:
+    """The machine, Python and the packages measured, in one line."""
+    return (
+        f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.python_implementation()} "
+        f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}, "
+        f"heartpole {heartpole.__version__}"
+    )
+
+
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+"""The clocks a rate can be timed with: wall time, or this process's CPU time (on a shared machine, the time
+the process ran, not the time it waited for a core)."""
+
+
+def single_rate(make: Factory, steps: int, seed: int = 0, clock: str = "wall") -> float:
+    """Steps per second of one env under random actions (reset when an episode ends), timed with ``clock``."""
+    now = CLOCKS[clock]
     env = make()
     env.reset(seed=seed)
     actions = np.random.default_rng(seed).integers(0, env.action_space.n, size=steps).tolist()
@@ -66,38 +98,40 @@ def single_rate(make: Factory, steps: int, seed: int = 0) -> float:
         if terminated or truncated:
             reset()
     gc.disable()
-    start = time.perf_counter()
+    start = now()
     for action in actions:
         _, _, terminated, truncated, _ = step(action)
         if terminated or truncated:
             reset()
-    elapsed = time.perf_counter() - start
+    elapsed = now() - start
     gc.enable()
     return steps / elapsed
 
 
-def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0) -> float:
-    """Env-steps per second of a native vector env under random actions (it autoresets itself)."""
+def vector_rate(make: Factory, num_envs: int, steps: int, seed: int = 0, clock: str = "wall") -> float:
+    """Env-steps per second of a native vector env under random actions (it autoresets itself), timed with
+    ``clock``."""
+    now = CLOCKS[clock]
     env = make()
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     actions = [rng.integers(0, env.single_action_space.n, size=num_envs) for _ in range(min(steps, 64))]
     for t in range(3):  # warm-up
         env.step(actions[t % len(actions)])
-    start = time.perf_counter()
+    start = now()
     for t in range(steps):
         env.step(actions[t % len(actions)])
-    return steps * num_envs / (time.perf_counter() - start)
+    return steps * num_envs / (now() - start)
 
 
-def measure(env: str, num_envs: int, steps: int, faults: bool = False) -> float:
+def measure(env: str, num_envs: int, steps: int, faults: bool = False, clock: str = "wall") -> float:
     """One measurement in this process: a single env when ``num_envs`` is 0, else a vector env (its page
-    faults a step with ``faults``)."""
+    faults a step with ``faults``), timed with ``clock``."""
     if faults:
         return page_faults(VECTOR_ENVS[env](num_envs), steps)
     if num_envs == 0:
-        return single_rate(SINGLE_ENVS[env], steps)
-    return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps)
+        return single_rate(SINGLE_ENVS[env], steps, clock=clock)
+    return vector_rate(lambda: VECTOR_ENVS[env](num_envs), num_envs, steps, clock=clock)
 
 
 def fresh(
@@ -319,20 +353,23 @@ def main() -> None:
     parser.add_argument(
         "--only", choices=["single", "vector", "people", "blas", "anatomy", "flat", "compile"], help="one section"
     )
-    parser.add_argument("--sizes", type=int, nargs="+", default=[256, 1024, 16384, 65536], help="vector sizes")
     parser.add_argument("--measure", nargs=3, metavar=("ENV", "NUM_ENVS", "STEPS"), help=argparse.SUPPRESS)
     parser.add_argument("--faults", action="store_true", help=argparse.SUPPRESS)
+    against.add_arguments(parser)  # --against REV and its options; --sizes serves the sections too
     args = parser.parse_args()
     if args.measure:
         env, num_envs, steps = args.measure
         print(measure(env, int(num_envs), int(steps), args.faults))
         return
+    try:
+        config = against.from_arguments(args)
+    except ValueError as error:
+        parser.error(str(error))
+    if config.against is not None:
+        against.compare(config)
+        return
     repeats = args.repeats or (3 if args.quick else 7)
-    print(
-        f"machine: {platform.machine()}, {os.cpu_count()} CPUs, {platform.python_implementation()} "
-        f"{platform.python_version()}, numpy {np.__version__}, gymnasium {gym.__version__}, "
-        f"heartpole {heartpole.__version__}{', with a second CPU-bound process' if args.busy else ''}"
-    )
+    print(machine_line() + (", with a second CPU-bound process" if args.busy else ""))
     sections = {
         "single": lambda: section_single(repeats),
         "vector": lambda: section_vector(repeats, args.sizes),

@@ -359,3 +359,46 @@ def test_minaris_data_collector_records_infos(tmp_path, monkeypatch) -> None:
         np.testing.assert_array_equal(episode.infos["action_taken"][1:], episode.actions)
         np.testing.assert_allclose(episode.infos["heart_attack_risk"][1:], risks[5 * i : 5 * i + 5])
         assert episode.infos["productivity"][0] == 0 and episode.infos["productivity"][1:].all()
+
+
+def test_compiled_for_is_the_same_code_without_dispatch_and_plain_functions_stay() -> None:
+    from heartpole import kernel
+    from heartpole.env import compiled_for
+
+    env = heartpole.HeartPole()
+    env.reset(seed=13)
+    arguments = (env._rng, env.dynamics.packed, env.dynamics.layout)
+    direct = compiled_for(kernel.step_one, (env._envs, 0, *arguments))
+    assert direct is not kernel.step_one  # numba's compiled entry point, not its dispatcher
+    twin = copy.deepcopy(env)
+    assert direct(env._envs, 2, *arguments) == kernel.step_one(twin._envs, 2, twin._rng, *arguments[1:])
+    assert env._envs.tobytes() == twin._envs.tobytes() and env._rng.tobytes() == twin._rng.tobytes()
+
+    def plain(*arguments: object) -> int:
+        return len(arguments)
+
+    assert compiled_for(plain, (1, 2)) is plain
+
+
+@pytest.mark.parametrize("render_mode", [None, "ansi", "rgb_array"])
+def test_a_copy_or_pickle_steps_its_own_state_not_the_originals(render_mode: str | None) -> None:
+    """The step reuses a view of the state and the compiled step (planned at reset): a copy plans its own."""
+    env = heartpole.HeartPole(render_mode=render_mode)
+    trajectory(env, ACTIONS[:20], seed=14)
+    for twin in (copy.deepcopy(env), pickle.loads(pickle.dumps(env))):
+        before = env.state
+        for action in ACTIONS[:30]:
+            obs, *_ = twin.step(action)
+            assert obs.tobytes() == np.array(list(twin.state.values()), dtype=np.float32).tobytes()
+        assert env.state == before != twin.state  # the original did not move
+
+
+def test_observations_are_fresh_arrays() -> None:
+    env = heartpole.HeartPole()
+    first, _ = env.reset(seed=15)
+    second = env.step(0)[0]
+    kept = second.copy()
+    third = env.step(1)[0]
+    second[:] = -1.0  # the caller's to change: neither the env nor later observations see it
+    assert not np.shares_memory(second, third) and not np.shares_memory(first, second)
+    assert env.step(0)[0].tobytes() != second.tobytes() and third.tobytes() != kept.tobytes()

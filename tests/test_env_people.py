@@ -271,3 +271,42 @@ def test_people_run_the_same_without_numba_compiling() -> None:
         ).stdout
 
     assert run({"NUMBA_DISABLE_JIT": "1"}) == run({}) != ""
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        pytest.param({"people": "default", "observe_traits": True}, id="traits"),
+        pytest.param({"people": UNIFORM}, id="distribution"),
+        pytest.param({"measurement": Measurement({"alertness": 0.2}, every=3)}, id="measurement"),
+    ],
+)
+def test_copies_of_a_single_env_with_people_or_measurement_continue_identically(kwargs: dict) -> None:
+    import copy
+    import pickle
+
+    env = HeartPole(max_steps=40, **kwargs)
+    env.reset(seed=16)
+    for t in range(25):
+        env.step(t % 4)
+    twins = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    runs = []
+    for e in [env, *twins]:
+        out = []
+        for t in range(60):  # across the end of the episode and a reset
+            obs, reward, _, truncated, info = e.step(t % 3)
+            out.append((obs.tobytes(), reward, info.get("person"), np.asarray(info.get("traits", ())).tobytes()))
+            if truncated:
+                e.reset()
+        runs.append(out)
+    assert runs[0] == runs[1] == runs[2]
+
+
+def test_a_single_envs_info_traits_are_its_own() -> None:
+    env = HeartPole(people="default")
+    _, reset_info = env.reset(seed=17)
+    first = env.step(0)[-1]
+    first["traits"][:] = -1.0  # the caller's to change: later infos keep the person's traits
+    second = env.step(0)[-1]
+    assert second["traits"].tobytes() == reset_info["traits"].tobytes() != first["traits"].tobytes()
+    assert second["person"] == reset_info["person"] == first["person"]

@@ -97,6 +97,17 @@ def episode_length(max_steps: int | None, max_episode_steps: int | None, *, max_
     return max_steps
 
 
+def compiled_for(function: Any, arguments: tuple[Any, ...]) -> Any:
+    """The compiled code of ``function`` (a numba dispatcher) for the types of ``arguments``, to be called without
+    numba's dispatch, which types every argument at every call (about 0.35 us of the single env's step, half its
+    compiled call). Later calls must pass arguments of the same types: the env's arrays keep theirs, and its action
+    is always a Python int. ``function`` itself where it is not compiled (``NUMBA_DISABLE_JIT=1``)."""
+    typeof, compile = getattr(function, "typeof_pyval", None), getattr(function, "compile", None)
+    if typeof is None or compile is None:
+        return function
+    return compile(tuple(typeof(argument) for argument in arguments))
+
+
 def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> None:
     """Raise ``ValueError`` unless ``render_mode`` is ``None`` or one of ``modes``."""
     if render_mode is not None and render_mode not in modes:
@@ -261,6 +272,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._sample: Sample | None = None  # the person of the episode
         self._cells = None if self._persons is None else self._persons.cells(1)  # the kernel's numbers of the person
         self._seen: Seen | None = None
+        self._person: int | None = None  # the episode's person's cohort index and traits, as info hands them out
+        self._traits: np.ndarray | None = None
         self.render_mode = render_mode
         self.heart_attack_proclivity = float(heart_attack_proclivity)
         self.max_steps = int(max_steps)
@@ -270,6 +283,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         # key's two halves and the draw counter).
         self._envs: np.ndarray | None = None
         self._rng = np.zeros((3, 1), dtype=np.uint32)
+        self._plan()
         self._action_names = tuple(a.name for a in self.dynamics.actions)
         self._num_actions = len(self._action_names)
         self._steps = 0
@@ -292,7 +306,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     @property
     def _state(self) -> np.ndarray | None:
         """The state of the episode (a view of the kernel's one env), ``None`` before ``reset``."""
-        return None if self._envs is None else self._envs[:, 0]
+        return self._row
 
     @property
     def state(self) -> dict[str, float]:
@@ -319,10 +333,12 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         else:
             assert self.people is not None and people_rng is not None
             self._sample = self.people.sample(people_rng, 1)
+            self._person, self._traits = int(self._sample.person[0]), self._sample.traits()
             self._persons.assign(self._cells, which, self._sample)  # type: ignore[arg-type]
             flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
             person_kernel.reset_envs(envs, rng, which, flat, layout, self._cells, overlay)
         self._envs, self._rng = envs, rng
+        self._plan()
         if self._observer.sensor is not None:
             self._seen = Seen(self._observer.sensor, 1)
             self._seen.rng = sensor_rng  # type: ignore[assignment]
@@ -340,17 +356,12 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         envs = self._envs
         if envs is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
-        if self._persons is None:
-            step = kernel.step_one(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
+        if self._persons is None:  # the arguments spelled out: a call with *arguments costs 40 ns more
+            step = self._step_kernel(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
         else:
-            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
-            step = person_kernel.step_one(envs, index, self._rng, flat, layout, self._cells, overlay)
+            step = self._step_kernel(envs, index, *self._kernel_arguments)
         reward, worked, risk, attack, new_score = step
-        if self._seen is not None:
-            self._seen.step(envs.T, None)
-        self._steps += 1
-        if self.render_mode is not None:
-            self._remember(index, attack)
+        self._steps = steps = self._steps + 1
         info = {
             "action_taken": index,
             "heart_attack": attack,
@@ -358,9 +369,13 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             "productivity": worked,
             "score": new_score,
         }
-        if self.people is not None:
-            self._with_person(info)
-        return self._observation(), reward, False, self._steps >= self.max_steps, info
+        if self._plain and self.render_mode is None:  # v0: the state is the observation, nothing to remember
+            return self._row.copy(), reward, False, steps >= self.max_steps, info  # type: ignore[union-attr]
+        if self._seen is not None:
+            self._seen.step(envs.T, None)
+        if self.render_mode is not None:
+            self._remember(index, attack)
+        return self._observation(), reward, False, steps >= self.max_steps, self._with_person(info)
 
     def render(self) -> str | np.ndarray | None:
         """Render as chosen by ``render_mode``: text since the last render, printed text, or an RGB frame."""
@@ -387,19 +402,47 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         return text
 
     # ----------------------------------------------------------------------------------------------------
+    def _plan(self) -> None:
+        """What every step of the episode reuses, derived from its arrays (at ``__init__``, ``reset`` and when a
+        copy or a pickle is restored): the state's view, whether the step is v0's plain path, and the compiled
+        step with the arguments that follow the action."""
+        self._row = None if self._envs is None else self._envs[:, 0]
+        self._plain = self._observer.plain and self.people is None
+        step: Any
+        arguments: tuple[Any, ...]
+        if self._persons is None:
+            step, arguments = kernel.step_one, (self._rng, self.dynamics.packed, self.dynamics.layout)
+        else:
+            flat, overlay = self._persons.flat, self._persons.overlay
+            step, arguments = person_kernel.step_one, (self._rng, flat, self.dynamics.layout, self._cells, overlay)
+        self._kernel_arguments = arguments
+        self._step_kernel = step if self._envs is None else compiled_for(step, (self._envs, 0, *arguments))
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The env's state for ``pickle`` and ``copy``: without what `_plan` derives (views and compiled code)."""
+        state = self.__dict__.copy()
+        for derived in ("_row", "_plain", "_kernel_arguments", "_step_kernel"):
+            state.pop(derived, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a pickled or copied env, its derived state planned anew."""
+        self.__dict__.update(state)
+        self._plan()
+
     def _observation(self) -> np.ndarray:
         """The observation: the state itself, or as measured, with the person's traits if observed."""
-        assert self._envs is not None
+        assert self._envs is not None and self._row is not None
         if self._observer.plain:
-            return self._envs[:, 0].copy()
-        assert self._sample is not None or not self._observer.observe_traits
-        traits = self._sample.traits() if self._observer.observe_traits and self._sample is not None else None
+            return self._row.copy()
+        assert self._traits is not None or not self._observer.observe_traits
+        traits = self._traits if self._observer.observe_traits else None
         return observe(self._envs.T, self._seen, traits)[0]
 
     def _with_person(self, info: dict[str, Any]) -> dict[str, Any]:
         """``info`` with the episode's person (its cohort index, -1 for a distribution) and traits, if any."""
-        if self._sample is not None:
-            info["person"], info["traits"] = int(self._sample.person[0]), self._sample.traits()[0]
+        if self._traits is not None:
+            info["person"], info["traits"] = self._person, self._traits[0].copy()
         return info
 
     def _remember(self, index: int, attack: bool) -> None:
