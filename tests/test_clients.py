@@ -351,3 +351,28 @@ def test_minari_data_collector_records_infos_and_recovers_the_env(
             steps += 1
         assert steps == episode_length
         recovered.close()
+
+
+def test_a_heartpole_people_dataset_recovers_its_env_in_minari(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The command line's dataset, as Minari's docs load it: its env is the one it was recorded on (the 24
+    people, their traits observed), with the data's spaces, for ``recover_environment`` and ``eval_env``. This
+    is what d3rlpy's ``get_minari`` and ``EnvironmentEvaluator`` rely on (d3rlpy itself pins Gymnasium 1.0)."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    command = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--epsilon", "0.1", "--episodes",
+               "5", "--people", "default", "--observe-traits"]  # fmt: skip
+    subprocess.run(command, check=True, capture_output=True)
+    import minari
+
+    dataset = minari.load_dataset("heartpole/v0/expert-eps10-people-default-traits-v0")
+    observations = next(dataset.iterate_episodes()).observations
+    assert dataset.observation_space.shape == observations.shape[1:] == (11,)
+    assert dataset.spec.env_spec is not None and dataset.spec.env_spec.kwargs["observe_traits"] is True
+    for eval_env in (False, True):
+        env = dataset.recover_environment(eval_env=eval_env)
+        assert env.observation_space == dataset.observation_space
+        assert len(env.unwrapped.people.cohort) == 24
+        obs, _ = env.reset(seed=0)
+        weights = np.ones((observations.shape[1], 4))  # a learner's first layer, shaped by the data
+        action = int(np.argmax(obs @ weights))
+        env.step(action)
+        env.close()
