@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import fields
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 from gymnasium.envs.registration import EnvSpec, parse_env_id
@@ -145,7 +145,7 @@ def honour_version_warning_filters() -> str | None:
                 return None  # Python's default: the user asked nothing
             if index == 0 or not any(_is_gymnasiums(f[0], f[3]) for f in filters[:index]):
                 return action  # already in front of Gymnasium's: it applies as it is
-            warnings.filterwarnings(action, V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
+            warnings.filterwarnings(cast(Any, action), V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
             return action
     return None
 
