@@ -6,16 +6,17 @@
 #   jax      heartpole.jax.make, a reset and a step
 #   train    a tiny heartpole train
 #   ray      a tiny heartpole train --ray over two seeds
+#   docs     the documentation site's strict build (scripts/build_docs.sh)
 # The full dev venv hides a missing dependency (pillow came with matplotlib for Minari's HDF5 storage, say).
 # PyTorch's CPU build goes in first where Stable-Baselines3 needs it (train, ray), as in scripts/setup.sh.
-# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all five; the installs run side by
+# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all six; the installs run side by
 # side). CI builds the venvs while the slow tests run (--setup-only), then runs the commands.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 setup_only=0
 if [ "${1:-}" = "--setup-only" ]; then setup_only=1; shift; fi
 extras=("$@")
-[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax train ray)
+[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax train ray docs)
 root=.venv-extras
 stamp=$(sha256sum pyproject.toml | cut -d' ' -f1)
 
@@ -32,7 +33,10 @@ install() {  # a fresh venv with HeartPole and the one extra; its log in $root/<
 mkdir -p "$root"
 pids=()
 for extra in "${extras[@]}"; do
-  case $extra in offline | plot | jax | train | ray) ;; *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, train, ray)" >&2; exit 2 ;; esac
+  case $extra in
+    offline | plot | jax | train | ray | docs) ;;
+    *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, train, ray, docs)" >&2; exit 2 ;;
+  esac
   install "$extra" >"$root/$extra.log" 2>&1 &
   pids+=($!)
 done
@@ -80,6 +84,7 @@ assert obs.shape == env.observation_space(params).shape'
     ray)
       "$bin/heartpole" train --ray --seeds 0-1 --timesteps 2000 --n-envs 2 --eval-episodes 10 --out "$work/ray"
       ;;
+    docs) MKDOCS=$bin/mkdocs bash scripts/build_docs.sh 2>&1 | tail -1 ;;
   esac
   echo "test_extras: heartpole[$extra] alone: its command ran ($((SECONDS - start)) s)"
 done
