@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import multiprocessing
+import os
 import subprocess
 import sys
 import warnings
@@ -351,3 +352,74 @@ def test_minari_data_collector_records_infos_and_recovers_the_env(
             steps += 1
         assert steps == episode_length
         recovered.close()
+
+
+def test_a_heartpole_people_dataset_recovers_its_env_in_minari(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The command line's dataset, as Minari's docs load it: its env is the one it was recorded on (the 24
+    people, their traits observed), with the data's spaces, for ``recover_environment`` and ``eval_env``. This
+    is what d3rlpy's ``get_minari`` and ``EnvironmentEvaluator`` rely on (d3rlpy itself pins Gymnasium 1.0)."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    command = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--epsilon", "0.1", "--episodes",
+               "5", "--people", "default", "--observe-traits"]  # fmt: skip
+    subprocess.run(command, check=True, capture_output=True)
+    import minari
+
+    dataset = minari.load_dataset("heartpole/v0/expert-eps10-people-default-traits-v0")
+    observations = next(dataset.iterate_episodes()).observations
+    assert dataset.observation_space.shape == observations.shape[1:] == (11,)
+    assert dataset.spec.env_spec is not None and dataset.spec.env_spec.kwargs["observe_traits"] is True
+    for eval_env in (False, True):
+        env = dataset.recover_environment(eval_env=eval_env)
+        assert env.observation_space == dataset.observation_space
+        assert len(env.unwrapped.people.cohort) == 24
+        obs, _ = env.reset(seed=0)
+        weights = np.ones((observations.shape[1], 4))  # a learner's first layer, shaped by the data
+        action = int(np.argmax(obs @ weights))
+        env.step(action)
+        env.close()
+
+
+# ------------------------------------------------------------------------------ the v0 warning, as users silence it
+V0_SCRIPT = """\
+import functools
+import gymnasium as gym
+
+if __name__ == "__main__":
+    gym.make("heartpole:HeartPole-v0").close()
+    workers = [functools.partial(gym.make, "heartpole:HeartPole-v0")] * 3
+    env = gym.vector.AsyncVectorEnv(workers, context="spawn")
+    env.reset(seed=0)
+    env.close()
+"""
+USER_FILTER = (
+    'import warnings\nwarnings.filterwarnings("ignore", ".*HeartPole-v0 is out of date", DeprecationWarning)\n'
+)
+
+
+@pytest.mark.parametrize(
+    "options, environment, prelude, shown",
+    [
+        ([], {}, "", 4),  # unasked, Gymnasium's notice stands: the main process and each of the three workers
+        (["-W", "ignore::DeprecationWarning"], {}, "", 0),
+        ([], {"PYTHONWARNINGS": "ignore::DeprecationWarning"}, "", 0),
+        ([], {}, USER_FILTER, 0),  # before `import gymnasium`; spawned workers run it too, as they import the script
+    ],
+    ids=["unasked", "-W", "PYTHONWARNINGS", "filter-before-import-gymnasium"],
+)
+def test_the_v0_warning_obeys_the_users_filters_in_workers_too(
+    tmp_path: Path, options: list[str], environment: dict[str, str], prelude: str, shown: int
+) -> None:
+    script = tmp_path / "v0.py"
+    script.write_text(prelude + V0_SCRIPT)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"} | environment
+    done = subprocess.run([sys.executable, *options, str(script)], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stderr.count("HeartPole-v0 is out of date") == shown, done.stderr[-2000:]
+
+
+def test_an_error_filter_for_deprecations_turns_the_v0_warning_into_an_error() -> None:
+    code = 'import gymnasium as gym, heartpole; gym.make("HeartPole-v0")'
+    done = subprocess.run(
+        [sys.executable, "-W", "error::DeprecationWarning", "-c", code], capture_output=True, text=True
+    )
+    assert done.returncode == 1 and "DeprecationWarning" in done.stderr and "HeartPole-v0 is out of date" in done.stderr

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ast
+import html
 import os
 import re
 import shutil
@@ -113,3 +115,58 @@ def test_a_broken_reference_fails_the_build(tmp_path: Path, where: str, breakage
     done = build(root, tmp_path / "site")
     assert done.returncode != 0, "a broken reference passed the strict build"
     assert "no_such_function" in done.stderr or "no-such-page.md" in done.stderr, done.stderr[-3000:]
+
+
+# ------------------------------------------------------------------------------------- docstring examples
+PRE = re.compile(r"<pre[^>]*>(.*?)</pre>", re.S)
+NESTED_QUOTES = re.compile(r"<blockquote>\s*<blockquote>")
+"""A doctest example rendered as prose: Markdown reads ``>>>`` as three nested quotes."""
+
+
+def shown_as_code(page: str) -> str:
+    """The text of a page's code blocks, as a reader sees it (tags dropped, entities decoded)."""
+    return "\n".join(html.unescape(re.sub(r"<[^>]+>", "", block)) for block in PRE.findall(page))
+
+
+def docstring_examples() -> dict[str, list[str]]:
+    """Every ``>>>`` line of every docstring in the package, by module path."""
+    found: dict[str, list[str]] = {}
+    for path in sorted((ROOT / "src" / "heartpole").rglob("*.py")):
+        if "cli" in path.parts or path.name == "__main__.py":
+            continue
+        tree = ast.parse(path.read_text())
+        nodes = [tree, *(n for n in ast.walk(tree) if isinstance(n, (ast.ClassDef, ast.FunctionDef)))]
+        lines = [
+            line.strip()
+            for node in nodes
+            for line in (ast.get_docstring(node) or "").splitlines()
+            if line.strip().startswith(">>>")
+        ]
+        if lines:
+            found[str(path.relative_to(ROOT))] = lines
+    return found
+
+
+def examples_shown_as_prose(site: Path) -> dict[str, int]:
+    """The pages that show an example as nested quotes, with how many."""
+    counts = {str(p.relative_to(site)): len(NESTED_QUOTES.findall(p.read_text())) for p in site.rglob("*.html")}
+    return {page: count for page, count in counts.items() if count}
+
+
+def test_every_docstring_example_renders_as_code_with_its_prompts(site: Path) -> None:
+    assert examples_shown_as_prose(site) == {}
+    code = "\n".join(shown_as_code(page.read_text()) for page in (site / "api").rglob("*.html"))
+    examples = docstring_examples()
+    assert sum(map(len, examples.values())) > 50  # the package's examples were found (78 lines today)
+    missing = {path: [line for line in lines if line not in code] for path, lines in examples.items()}
+    assert {path: lines for path, lines in missing.items() if lines} == {}
+
+
+def test_the_example_check_can_fail(tmp_path: Path) -> None:
+    """An example as mkdocstrings showed it before the hook: nested quotes, the prompts gone."""
+    (tmp_path / "index.html").write_text(
+        "<blockquote>\n<blockquote>\n<blockquote>\n<p>import heartpole env.action_space Discrete(4)</p>"
+        "</blockquote>\n</blockquote>\n</blockquote>"
+    )
+    assert examples_shown_as_prose(tmp_path) == {"index.html": 1}
+    assert ">>> env.action_space" not in shown_as_code((tmp_path / "index.html").read_text())

@@ -26,7 +26,7 @@ import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import fields
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 from gymnasium.envs.registration import EnvSpec, parse_env_id
@@ -89,11 +89,75 @@ def register_envs() -> None:
     Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
     ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so warns, once per
     calling line, that ``HeartPole-v0`` "is out of date"; v1 is a richer variant, v0 stays the reference benchmark.
-    Gymnasium offers no per-id way to say so, and a package must not change the process's warning filters, so the
-    notice stands (silence it in your own code if you wish; see the README)."""
+    Gymnasium offers no per-id way to say so; the notice stands unless the user's own warning filters say
+    otherwise, which [`honour_version_warning_filters`][heartpole.registry.honour_version_warning_filters] makes
+    them do."""
     for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
             define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
+    honour_version_warning_filters()
+
+
+V0_WARNING = r".*The environment HeartPole-v0 is out of date"
+"""A message pattern of Gymnasium's warning that ``HeartPole-v0`` "is out of date" (its text starts with colour
+codes and ``WARN:``, hence the ``.*``)."""
+_WARNING_MODULE = "gymnasium.envs.registration"  # where Gymnasium's warning is raised (its _find_spec)
+# Python's own filters, last in the list at startup in this order (PEP 565); a match there is no wish of the
+# user's. An equal filter of the user's (``-W ignore::DeprecationWarning``) takes a default's place in front.
+_PYTHON_DEFAULTS = (
+    ("default", None, DeprecationWarning, "__main__", 0),
+    ("ignore", None, DeprecationWarning, None, 0),
+    ("ignore", None, PendingDeprecationWarning, None, 0),
+    ("ignore", None, ImportWarning, None, 0),
+    ("ignore", None, ResourceWarning, None, 0),
+)
+
+
+def honour_version_warning_filters() -> str | None:
+    """Make the user's own warning filters decide Gymnasium's "HeartPole-v0 is out of date" warning; the action
+    taken (``"ignore"``, ``"error"``, ...), or ``None`` where the user's filters say nothing about it.
+
+    Importing Gymnasium puts a ``"once"`` filter for DeprecationWarnings raised in Gymnasium's modules in front
+    of every filter there is, so ``python -W ignore::DeprecationWarning``, ``PYTHONWARNINGS`` and a filter
+    added before ``import gymnasium`` never reach the v0 warning, and every worker process (an async vector
+    env's, SubprocVecEnv's, Ray's) prints it again. ``import heartpole`` (in every worker, where the env is
+    made) looks through the filters behind Gymnasium's for the first that matches the v0 warning; if it is the
+    user's (from ``-W``, ``PYTHONWARNINGS`` or their code), not one of Python's defaults, it adds one filter
+    with that filter's action for the v0 warning alone. Without such a filter nothing changes: the notice
+    stands, as Gymnasium shows it.
+    """
+    from gymnasium.utils import colorize
+
+    text = colorize(f"WARN: The environment {V0_ID} is out of date. You should consider upgrading to version `v1`.",
+                    "yellow")  # fmt: skip
+    filters = list(warnings.filters)
+    start, expected = len(filters), list(_PYTHON_DEFAULTS)  # where Python's defaults begin
+    while start > 0 and expected:
+        if filters[start - 1] == expected.pop():
+            start -= 1
+    for index, (action, message, category, module, lineno) in enumerate(filters):
+        if _is_gymnasiums(action, module):
+            continue
+        if not issubclass(DeprecationWarning, category) or lineno:
+            continue
+        if (message is None or message.match(text)) and (module is None or _module_matches(module)):
+            if index >= start:
+                return None  # Python's default: the user asked nothing
+            if index == 0 or not any(_is_gymnasiums(f[0], f[3]) for f in filters[:index]):
+                return action  # already in front of Gymnasium's: it applies as it is
+            warnings.filterwarnings(cast(Any, action), V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
+            return action
+    return None
+
+
+def _is_gymnasiums(action: str, module: Any) -> bool:
+    """Whether a filter is the one ``import gymnasium`` adds (``once`` for its own modules)."""
+    pattern = getattr(module, "pattern", module)
+    return action == "once" and isinstance(pattern, str) and pattern.startswith(r"^gymnasium")
+
+
+def _module_matches(module: Any) -> bool:
+    return bool(module.match(_WARNING_MODULE)) if hasattr(module, "match") else module == _WARNING_MODULE
 
 
 def solved_bar(dynamics: Dynamics) -> SolvedBar:

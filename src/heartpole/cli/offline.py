@@ -24,6 +24,7 @@ from heartpole.cli.common import (
 from heartpole.progress import progress
 
 if TYPE_CHECKING:
+    from heartpole.measurement import Measurement
     from heartpole.offline.ope import OPEReport
 
 ORDER = 40
@@ -78,6 +79,13 @@ def _register_dataset(subparsers: Subparsers) -> None:
     parser.add_argument("--id", dest="dataset_id", metavar="ID", help="dataset id (default: from policy and epsilon)")
     parser.add_argument("--force", action="store_true", help="replace an existing dataset of the same id")
     add_people_arguments(parser, "each episode's person is recorded with it")
+    parser.add_argument(
+        "--measurement",
+        type=_measurement,
+        metavar="JSON",
+        help='observe the state through a heartpole.Measurement, as JSON: \'{"noise": {"alertness": 0.2}, '
+        '"every": 4}\' (noise sd per variable; measured every 4 half-hours); recorded with the dataset',
+    )
     parser.set_defaults(handler=run_dataset)
 
 
@@ -122,6 +130,8 @@ def run_dataset(args: argparse.Namespace) -> int:
         raise CommandError("--observe-traits needs --people (the traits are the person's)")
     if args.standard and args.people is not None:
         raise CommandError("--people records one dataset: give --policy P, not --standard")
+    if args.standard and args.measurement is not None:
+        raise CommandError("--measurement records one dataset: give --policy P, not --standard")
     max_steps = _library(lambda: _max_steps(args.env))
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
@@ -147,13 +157,15 @@ def run_dataset(args: argparse.Namespace) -> int:
                 progress=bar.update,
                 people=args.people,
                 observe_traits=args.observe_traits,
+                measurement=args.measurement,
             )
         )
     meta = dataset.storage.metadata
     print(
         f"recorded {meta['dataset_id']}: {meta['total_episodes']} episodes, {meta['total_steps']} steps "
         f"in {meta['recording_seconds']:.1f} s (behaviour {meta['behaviour_policy']}, epsilon {meta['epsilon']}, "
-        f"seed {meta['seed']}{_people_note(meta)})\nin {datasets.local_root()}"
+        f"seed {meta['seed']}{_people_note(meta)}{', measured' if meta.get('measurement') else ''})\n"
+        f"in {datasets.local_root()}"
     )
     return 0
 
@@ -199,6 +211,23 @@ def format_report(report: OPEReport) -> str:
 
 # ------------------------------------------------------------------------------------------------------
 # helpers
+
+
+def _measurement(text: str) -> Measurement:
+    """``--measurement``'s JSON as a [`Measurement`][heartpole.measurement.Measurement]."""
+    from heartpole.measurement import Measurement
+
+    accepted = 'a JSON object such as \'{"noise": {"alertness": 0.2}, "every": 4}\''
+    try:
+        spec = json.loads(text)
+    except json.JSONDecodeError:
+        raise argparse.ArgumentTypeError(f"--measurement must be {accepted}, got {text!r}") from None
+    if not isinstance(spec, dict) or set(spec) - {"noise", "every"} or "noise" not in spec:
+        raise argparse.ArgumentTypeError(f"--measurement must be {accepted} (keys noise and every), got {text!r}")
+    try:
+        return Measurement(**spec)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"--measurement {text!r}: {error}") from None
 
 
 def _people_note(meta: dict[str, object]) -> str:

@@ -5,6 +5,8 @@ Minari is imported when a dataset is written or read, PyTorch when a learner tra
 
 * [`heartpole.offline.datasets`][heartpole.offline.datasets]: record (``record_dataset``, ``record_standard``) and load
   datasets.
+* [`heartpole.offline.recorded`][heartpole.offline.recorded]: the env a dataset was recorded on, as Minari stores it
+  (``recover_environment()`` makes it).
 * [`true_value`][heartpole.offline.truth.true_value]: a policy's true value, discounted and undiscounted, with 95%
   intervals.
 * [`heartpole.offline.ope`][heartpole.offline.ope]: PDIS, WPDIS, FQE and DR (``estimate_all``, ``evaluate_off_policy``).

@@ -44,15 +44,18 @@ if TYPE_CHECKING:
 
 from heartpole import files
 from heartpole.evaluation import chunk_seed, policy_rng
+from heartpole.measurement import Measurement
 from heartpole.model import check_integer
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.population import (
+    measurement_kwargs,
+    measurement_suffix,
     people_kwargs,
-    people_metadata,
     people_reference_scores,
     people_suffix,
     person_infos,
 )
+from heartpole.offline.recorded import minari_env_options, recorded_metadata, recorded_spec
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
 from heartpole.people import People
 from heartpole.policies import Policy, load_policy, policy_name
@@ -130,6 +133,7 @@ def record_dataset(
     progress: Callable[[int], None] | None = None,
     people: People | str | None = None,
     observe_traits: bool = False,
+    measurement: Measurement | None = None,
 ) -> MinariDataset:
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
@@ -151,6 +155,12 @@ def record_dataset(
             per episode, recorded in the infos and the metadata (see
             [`heartpole.offline.population`][heartpole.offline.population]).
         observe_traits: append each person's traits to the observation (needs ``people``).
+        measurement: what the behaviour observes of the state
+            ([`Measurement`][heartpole.measurement.Measurement]; recorded in the metadata).
+
+    The dataset's env (``env_spec`` and ``eval_env``, so ``recover_environment()``) is ``env_id`` made with
+    these people, traits and measurement, and its spaces are the data's
+    ([`heartpole.offline.recorded`][heartpole.offline.recorded]).
 
     Returns:
         the ``minari.MinariDataset``, loaded from its final place.
@@ -161,9 +171,10 @@ def record_dataset(
     """
     import minari
 
+    env_kwargs = {**people_kwargs(people, observe_traits), **measurement_kwargs(measurement)}
     target_id, create = _plan(policy, epsilon, episodes, env_id, seed, dataset_id, force, description, num_envs,
-                              progress, people_kwargs(people, observe_traits),
-                              people_suffix(people, observe_traits))  # fmt: skip
+                              progress, env_kwargs,
+                              people_suffix(people, observe_traits) + measurement_suffix(measurement))  # fmt: skip
     with quiet_version_warnings():
         _write_atomically({target_id: create}, force)
         return minari.load_dataset(target_id)
@@ -189,7 +200,8 @@ def _plan(
 
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     epsilon = check_epsilon(epsilon)
-    dynamics = env_dynamics(env_id)
+    env_kwargs = env_kwargs or {}
+    spec = recorded_spec(env_id, env_kwargs)  # checks the env and its kwargs before anything runs
     base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
     components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
@@ -201,7 +213,6 @@ def _plan(
         )
     chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     seeds = [chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
-    env_kwargs = env_kwargs or {}
     low, high = (
         reference_scores(env_id) if not env_kwargs else people_reference_scores(env_id, env_kwargs, REFERENCE_EPISODES)
     )
@@ -210,15 +221,11 @@ def _plan(
         "behaviour_components": [policy_name(b) for b in components],
         "epsilon": epsilon,
         "seed": seed,
-        "env_id": env_id,
-        "max_steps": int(dynamics.params.max_steps),
-        "action_names": [a.name for a in dynamics.actions],
-        "observation_names": list(dynamics.names),
         "infos": "action_probabilities (behaviour propensities), heart_attack_risk, productivity, heart_attack, score",
         "reference_scores": "ref_min_score: random's expected return; ref_max_score: the optimum's (else the expert's) "
         f"({REFERENCE_EPISODES} episodes, expected-risk estimate)",
         "heartpole_version": _version(),
-        **people_metadata(env_kwargs),
+        **recorded_metadata(env_id, env_kwargs),
     }
     text = description or (
         f"{episodes} episodes of {env_id} by the behaviour policy {policy_name(base)!r} with epsilon={epsilon} "
@@ -226,8 +233,7 @@ def _plan(
         "action probabilities per observation (propensities) and the env's heart_attack_risk and productivity."
     )
     options = {
-        "env": env_id,
-        "eval_env": env_id,
+        **minari_env_options(spec),
         "algorithm_name": f"heartpole behaviour: {name}",
         "author": AUTHOR,
         "ref_min_score": low,

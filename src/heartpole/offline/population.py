@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from heartpole.measurement import Measurement
 from heartpole.offline.trajectories import Trajectories
 from heartpole.people import People, Person, Uniform, Value
 
@@ -55,6 +56,33 @@ def people_metadata(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
     return {"people": People.resolve(people).to_dict(), "observe_traits": bool(env_kwargs.get("observe_traits"))}  # type: ignore[union-attr]
 
 
+def measurement_kwargs(measurement: Measurement | None) -> dict[str, Any]:
+    """The env keyword argument of ``measurement`` (empty without one).
+
+    Raises:
+        TypeError: a ``measurement`` that is neither a [`Measurement`][heartpole.measurement.Measurement] nor
+            ``None``.
+    """
+    if measurement is None:
+        return {}
+    if not isinstance(measurement, Measurement):
+        raise TypeError(f"measurement must be a heartpole.Measurement or None, got {measurement!r}")
+    return {"measurement": measurement}
+
+
+def measurement_suffix(measurement: Measurement | None) -> str:
+    """What a dataset's default name adds for a measurement: ``-measured`` (empty without one), so a dataset of
+    measured observations never takes the id of one of the state itself."""
+    return "" if measurement is None else "-measured"
+
+
+def measurement_metadata(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """A dataset's metadata about its measurement: ``measurement``
+    ([`Measurement.to_dict`][heartpole.measurement.Measurement.to_dict]); empty without one."""
+    measurement = env_kwargs.get("measurement")
+    return {} if measurement is None else {"measurement": measurement.to_dict()}
+
+
 def people_from_dict(spec: Mapping[str, Any]) -> People:
     """The population [`People.to_dict`][heartpole.people.People.to_dict] described.
 
@@ -74,12 +102,11 @@ def people_from_dict(spec: Mapping[str, Any]) -> People:
 
 
 def dataset_env_kwargs(metadata: Mapping[str, Any]) -> dict[str, Any]:
-    """The env keyword arguments of a dataset's metadata: its ``people`` and ``observe_traits`` (empty for a
-    dataset recorded without people)."""
-    spec = metadata.get("people")
-    if not spec:  # absent, or None
-        return {}
-    return people_kwargs(people_from_dict(spec), bool(metadata.get("observe_traits", False)))
+    """The env keyword arguments of a dataset's metadata: its ``people`` and ``observe_traits``, and its
+    ``measurement`` (empty for a dataset recorded without them)."""
+    spec, measured = metadata.get("people"), metadata.get("measurement")
+    kwargs = people_kwargs(people_from_dict(spec), bool(metadata.get("observe_traits", False))) if spec else {}
+    return {**kwargs, **({"measurement": Measurement(**measured)} if measured else {})}
 
 
 def people_truth_fields(
