@@ -1,8 +1,11 @@
 """Shared test setup: solutions of heartpole.optimum and JAX's compiled code are cached in temporary folders,
 not the user's caches (another process writing the same cache at the same time, such as a second test run or
-a training run, must not hand a test half-written entries)."""
+a training run, must not hand a test half-written entries); ``terminal_signals`` for the tests that raise signals
+in the test process (tests/signal_dispositions.py says why)."""
 
 import os
+import signal
+from collections.abc import Iterator
 
 import pytest
 
@@ -27,3 +30,17 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.path.name in RAY_FILES:
             item.add_marker(pytest.mark.xdist_group("ray"))
+
+
+@pytest.fixture
+def terminal_signals() -> Iterator[None]:
+    """SIGINT raising ``KeyboardInterrupt``, SIGTERM and SIGHUP at their defaults, as in a terminal, for a test that
+    raises them in its own process, whatever the run inherited (``nohup``, a background job); put back afterwards."""
+    from tests.signal_dispositions import SIGNALS
+
+    before = {signum: signal.getsignal(signum) for signum in SIGNALS}
+    for signum in SIGNALS:
+        signal.signal(signum, signal.default_int_handler if signum == signal.SIGINT else signal.SIG_DFL)
+    yield
+    for signum, handler in before.items():
+        signal.signal(signum, handler)

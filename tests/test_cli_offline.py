@@ -86,9 +86,11 @@ def test_sigterm_while_recording_leaves_nothing(minari_folder):
     import sys
     import time
 
+    from tests.signal_dispositions import as_in_a_terminal
+
     env = {**os.environ, "MINARI_DATASETS_PATH": str(minari_folder)}
     argv = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--episodes", "2000"]
-    process = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(argv, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=as_in_a_terminal)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not list(minari_folder.iterdir()):
         time.sleep(0.01)  # the temporary folder appears when the dataset is being written

@@ -12,8 +12,11 @@ from pathlib import Path
 import pytest
 
 from heartpole import files
+from tests.signal_dispositions import as_in_a_terminal
 
 needs_signals = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="POSIX signals")
+# The signals these tests raise do what they do in a terminal, however the run was started (nohup, a background job).
+pytestmark = pytest.mark.usefixtures("terminal_signals")
 FAILURES = [RuntimeError("boom"), KeyboardInterrupt(), SystemExit(1), files.Interrupted(signal.SIGINT)]
 
 
@@ -358,7 +361,63 @@ def test_a_signal_never_cuts_a_c_extensions_initialisation() -> None:
     import sys
 
     pytest.importorskip("matplotlib")
-    result = subprocess.run([sys.executable, "-c", CUT_AN_EXTENSION], capture_output=True, text=True, timeout=120)
+    result = subprocess.run([sys.executable, "-c", CUT_AN_EXTENSION], capture_output=True, text=True, timeout=120,
+                            preexec_fn=as_in_a_terminal)  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "interrupted by SIGTERM cut: True", result.stdout + result.stderr
     assert "Fatal Python error" not in result.stderr and "ImportError" not in result.stderr
+
+
+ARRIVING_TOGETHER = """
+import os
+from heartpole import files
+
+policy_handler = files._raise
+
+
+def handler(signum, frame):  # the policy's, then which signal it takes for the first, on stdout
+    try:
+        policy_handler(signum, frame)
+    finally:
+        os.write(1, b"%d\\n" % files.received_signal())
+
+
+files._raise = handler
+with files.signal_policy():
+    print("ready", flush=True)
+    while True:
+        sum(range(10**9))  # one long C call: no handler runs in Python until it returns
+"""
+
+
+def pending(pid: int) -> int:
+    """The signals the kernel holds for ``pid``, not yet handed to it (a bit mask; 0 without /proc)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:
+        return 0
+    return sum(int(line.split()[1], 16) for line in status if line.startswith(("ShdPnd:", "SigPnd:")))
+
+
+@needs_signals
+def test_the_first_signal_to_arrive_decides_though_python_handles_sighup_first() -> None:
+    """SIGTERM, SIGINT and SIGHUP, each handed to the process in turn while its main thread is in one long C call:
+    Python then runs their handlers in the order of their numbers (SIGHUP first); the first signal is still SIGTERM,
+    the first to arrive (`files` reads the order from its wakeup pipe); without the pipe it was SIGHUP."""
+    import subprocess
+    import sys
+
+    child = subprocess.Popen([sys.executable, "-c", ARRIVING_TOGETHER], stdout=subprocess.PIPE, text=True,
+                             preexec_fn=as_in_a_terminal)  # fmt: skip
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "ready\n"
+        time.sleep(0.2)  # into the C call
+        for signum in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+            child.send_signal(signum)
+            deadline = time.monotonic() + 10
+            while pending(child.pid) and time.monotonic() < deadline:  # handed over before the next is sent
+                time.sleep(0.001)
+        assert int(child.stdout.readline()) == signal.SIGTERM
+    finally:
+        child.kill()
+        child.wait()

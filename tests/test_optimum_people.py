@@ -69,7 +69,7 @@ def test_oracle_regret_of_the_optimal_values_is_exactly_zero(small: optimum_peop
     person = np.random.default_rng(1).integers(0, 3, 500)
     result = small.regret(person, small.expected_returns[person])
     assert result.regret == 0.0 and result.episodes == 500
-    widen = float(small.error_bounds[person].mean())
+    widen = float(small.margins[person].mean())
     assert result.ci95 == (-widen, widen)
 
 

@@ -26,6 +26,7 @@ torch = pytest.importorskip("torch")
 
 from heartpole import training  # noqa: E402
 from heartpole.cli import main  # noqa: E402
+from tests.signal_dispositions import as_in_a_terminal  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*is out of date.*:DeprecationWarning")
 RUN_FILES = ("model.zip", "vecnormalize.pkl", "heartpole.json", "learning_curve.csv", "evaluation.json")
@@ -233,7 +234,9 @@ def test_an_interrupted_search_resumes_without_rerunning_finished_trials(tmp_pat
     out = tmp_path / "search"
     command = [sys.executable, "-m", "heartpole", "tune", "--trials", "2", "--seeds-per-trial", "1", *TINY,
                "--out", str(out)]  # fmt: skip
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=as_in_a_terminal
+    )  # SIGINT not ignored even where the run was started as a background job
     deadline = time.monotonic() + 240
     while not list(out.glob("trials/*/summary.json")) and time.monotonic() < deadline and process.poll() is None:
         time.sleep(0.2)

@@ -38,7 +38,7 @@ def test_oracle_fields_are_the_mean_gap_to_each_persons_optimum(trio: PeopleOpti
     fields = oracle_fields(trio, person, returns)
     assert fields["oracle_regret"] == pytest.approx(6.875 / 7, abs=1e-12)
     assert fields["oracle_regret"] == np.mean(trio.expected_returns[person] - returns)  # exactly
-    expected = oracle_regret(trio.expected_returns, person, returns, trio.error_bounds)
+    expected = oracle_regret(trio.expected_returns, person, returns, trio.margins)
     assert fields["oracle_regret_ci95"] == expected.ci95
     assert oracle_fields(None, person, returns) == {}
     assert oracle_fields("why not", person, returns) == {"no_oracle_regret_reason": "why not"}
@@ -75,7 +75,7 @@ def test_oracle_regret_is_each_persons_optimum_minus_the_expected_return(  # typ
 ) -> None:
     gaps = trio.expected_returns[expert.person] - expert.expected_returns
     assert expert.oracle_regret == gaps.mean()  # exactly: the same numbers, the same sum
-    widen = trio.error_bounds[expert.person].mean()
+    widen = trio.margins[expert.person].mean()
     half = (expert.oracle_regret_ci95[1] - expert.oracle_regret_ci95[0]) / 2
     assert half == pytest.approx(1.96 * gaps.std(ddof=1) / math.sqrt(EPISODES) + widen, rel=0.01)
 

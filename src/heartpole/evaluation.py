@@ -128,7 +128,9 @@ class EvaluationResult:
     def with_regret(self, optimal_return: float, error_bound: float = 0.0) -> EvaluationResult:
         """This result with its regret: ``optimal_return`` minus the expected-risk return.
 
-        The 95% interval is the expected-risk interval reflected, widened by the optimum's ``error_bound``.
+        The 95% interval is the expected-risk interval reflected, widened by ``error_bound``: the optimum's
+        [`margin`][heartpole.optimum.solution.OptimumSolution.margin] (its grid's error and what the history it does
+        not see is worth) where evaluation computes the regret.
         """
         low, high = self.expected_ci95
         interval = (optimal_return - high - error_bound, optimal_return - low + error_bound)
@@ -361,7 +363,7 @@ def summarise(
     result = replace(result, **oracle_fields(truth, result.person, result.expected_returns))
     if solution is None or isinstance(solution, str):
         return replace(result, no_regret_reason=solution)
-    return result.with_regret(solution.expected_return, solution.error_bound)
+    return result.with_regret(solution.expected_return, solution.margin)
 
 
 def optimum_or_reason(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:

@@ -50,7 +50,8 @@ SIGNALS: tuple[signal.Signals, ...] = tuple(
 )
 """The signals that end a command cleanly: Ctrl-C, a process manager's stop, a closed terminal."""
 
-_received: list[int] = []  # the first signal the policy's handlers saw, for the exit code
+_received: list[int] = []  # the first signal to arrive under the policy, for the exit code
+_arrivals: list[int] = []  # the read end of the policy's wakeup pipe: every signal's number, as it arrives
 
 
 class Interrupted(KeyboardInterrupt):
@@ -73,16 +74,30 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def _raise(signum: int, frame: FrameType | None) -> None:
+def _note(signum: int) -> None:
+    """Record the first signal to arrive: Python runs the handlers of those that came since it last looked in the order
+    of their numbers (SIGHUP first), the wakeup pipe holds them in the order they came."""
     if not _received:
-        _received.append(signum)
+        try:
+            arrived = os.read(_arrivals[0], 4096) if _arrivals else b""
+        except BlockingIOError:  # an empty pipe
+            arrived = b""
+        _received.append(next((n for n in arrived if n in SIGNALS), signum))
+
+
+def _raise(signum: int, frame: FrameType | None) -> None:
+    _note(signum)
     raise Interrupted(signum)
 
 
-def _swappable(handler: object) -> bool:
-    """Whether a handler may be swapped and put back: ignored signals (``nohup``'s SIGHUP) stay ignored, and
-    a handler installed outside Python (``None``) cannot be put back."""
-    return handler is not None and handler is not signal.SIG_IGN
+def _forget_arrivals() -> None:  # after a fork, in the child: its signals are never written into the parent's pipe
+    if _arrivals:
+        _arrivals.clear()
+        signal.set_wakeup_fd(-1)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_arrivals)
 
 
 @contextmanager
@@ -107,7 +122,7 @@ def _handlers(handler: Callable[[int, FrameType | None], Any]) -> Iterator[None]
     previous ones."""
     with signal_handlers_kept():
         for s in SIGNALS if _main_thread() else ():
-            if _swappable(signal.getsignal(s)):
+            if signal.getsignal(s) not in (None, signal.SIG_IGN):  # ignored stays ignored (nohup); None: not Python's
                 signal.signal(s, handler)
         yield
 
@@ -119,18 +134,31 @@ def signal_policy() -> Iterator[None]:
 
     The ``heartpole`` command runs inside this: every ``finally`` and context manager on the way out runs
     (staging folders and temporary files are removed, Ray is shut down), then the command exits with
-    [`exit_code`][heartpole.files.exit_code]. The handlers from before are restored at the end. Ignored signals stay
-    ignored. An [`Interrupted`][heartpole.files.Interrupted] raised where Python ignores exceptions (a ``__del__``)
-    is delivered again."""
+    [`exit_code`][heartpole.files.exit_code] of the first signal to arrive (signals that reach a process together,
+    before it runs again, arrive as the system delivers them: SIGHUP, SIGINT, SIGTERM). The handlers from before are
+    restored at the end; ignored signals stay ignored. An [`Interrupted`][heartpole.files.Interrupted] raised where
+    Python ignores exceptions (a ``__del__``) is delivered again."""
     _received.clear()
     hook = sys.unraisablehook
     sys.unraisablehook = _redeliver(hook)
     finder = _WholeExtensions()
     sys.meta_path.insert(0, finder)
+    read, write = os.pipe()  # the wakeup pipe of `_note`, in the main thread, unless another is set
     try:
+        for fd in (read, write):
+            os.set_blocking(fd, False)
+        if _main_thread() and (previous := signal.set_wakeup_fd(write, warn_on_full_buffer=False)) != -1:
+            signal.set_wakeup_fd(previous)  # another's (an asyncio loop's): it stays
+        elif _main_thread():
+            _arrivals[:] = [read]
         with _handlers(_raise):
             yield
     finally:
+        if _arrivals == [read]:
+            _arrivals.clear()
+            signal.set_wakeup_fd(-1)
+        os.close(read)
+        os.close(write)
         sys.meta_path.remove(finder)
         sys.unraisablehook = hook
 
@@ -203,8 +231,8 @@ def exit_code() -> int:
 
 
 def interruption() -> Interrupted:
-    """The exception to raise when a library stopped gracefully on a signal:
-    [`Interrupted`][heartpole.files.Interrupted] of the first signal received (SIGINT if none was recorded)."""
+    """For a library that stopped gracefully on a signal: [`Interrupted`][heartpole.files.Interrupted] of the first
+    one received (SIGINT if none was recorded)."""
     return Interrupted(received_signal() or signal.SIGINT)
 
 
@@ -245,8 +273,7 @@ def signals_as_ctrl_c() -> Iterator[None]:
         if forwarded or not callable(handler) or handler in (_raise, signal.default_int_handler):
             _raise(signum, frame)
         forwarded.append(signum)
-        if not _received:
-            _received.append(signum)
+        _note(signum)
         signal.raise_signal(signal.SIGINT)
 
     with signal_handlers_kept():

@@ -1,4 +1,4 @@
-"""The true optimum of HeartPole-v0 by dynamic programming: the ceiling every policy's regret is measured from.
+"""The optimum of HeartPole-v0 by dynamic programming: the ceiling every policy's regret is measured from.
 
 What is solved. An episode's return telescopes to ``final score - penalty x heart attacks``, with the score
 ``work_done / time_elapsed`` (fact 0's bookkeeping). The solver finds the policy that maximises the
@@ -40,8 +40,11 @@ What it does not cover, refused with a clear error: action sets other than v0's 
 naps, tea, exercise and cannabis), extra state variables, ``heart_attack_proclivity = 0`` or
 ``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where
 [`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] cannot rule drinks out. The solved policy sees ``(n,
-alertness, t)``, not the work and sleeps so far; an exact ``E[work / time]`` optimum would also condition on those,
-which the issue's independent solver measured to be worth about 1e-5 of return.
+alertness, t)``, not the work and sleeps so far: it is the best of the policies that see those. An exact
+``E[work / time]`` optimum over all policies would also condition on the work and time so far; that is not solved.
+What it is worth was measured instead ([`heartpole.optimum.history`][heartpole.optimum.history]: about 1.2e-5 on
+v0), and regret intervals are widened by [`HISTORY_GAIN`][heartpole.optimum.common.HISTORY_GAIN] besides the grid's
+error ([`OptimumSolution.margin`][heartpole.optimum.solution.OptimumSolution.margin]).
 
 Also here: [`sleep_rule_value`][heartpole.optimum.sleep.sleep_rule_value], the exact expected return of any no-drink
 sleep rule (``expert``'s regret without sampling), and [`solve_drinking`][heartpole.optimum.drinking.solve_drinking], a
@@ -51,7 +54,8 @@ not a certified optimum.
 
 Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
 program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
-never pay), `.drinking` (proclivity 0), `.common` (what they share).
+never pay), `.drinking` (proclivity 0), `.history` (what the work and time so far are worth, measured),
+`.common` (what they share).
 """
 
 from __future__ import annotations

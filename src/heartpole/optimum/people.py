@@ -4,11 +4,12 @@
 [`People`][heartpole.people.People] once, through [`optimum`][heartpole.optimum.optimum] and its cache
 (memory and disk), several at a time in worker processes. The person's optimal expected return is the
 quantity [`EvaluationResult.with_regret`][heartpole.evaluation.EvaluationResult.with_regret] compares a
-policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``error_bound``.
+policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grid's error
+and what the history it does not see was measured to be worth).
 
 [`oracle_regret`][heartpole.optimum.people.oracle_regret] is then the mean over episodes of (the episode's
 person's optimal expected return - the policy's expected-risk return in that episode), with a 95% Student-t
-interval over episodes widened by the optimum's grid error. The stacked thresholds of
+interval over episodes widened by the optimum's margin. The stacked thresholds of
 [`PeopleOptimum`][heartpole.optimum.people.PeopleOptimum] act as the ``oracle`` policy: each env sleeps as
 its own person's optimal policy would.
 """
@@ -74,7 +75,8 @@ def oracle_regret(
         person: ``(episodes,)`` each episode's person (an index into ``optimal_returns``).
         expected_returns: ``(episodes,)`` each episode's expected-risk return (final score - penalty x the
             summed heart-attack risks, as evaluation computes it).
-        error_bounds: ``(people,)`` each optimum's grid error bound (default 0).
+        error_bounds: ``(people,)`` how far each optimum may be off, the intervals' widening (default 0;
+            [`PeopleOptimum.regret`][heartpole.optimum.people.PeopleOptimum.regret] gives their margins).
 
     Raises:
         ValueError: no episode, shapes that differ, or a person index out of range.
@@ -128,6 +130,12 @@ class PeopleOptimum:
         return np.array([s.error_bound for s in self.solutions], dtype=np.float64)
 
     @cached_property
+    def margins(self) -> np.ndarray:
+        """``(people,)`` float64: each optimum's [`margin`][heartpole.optimum.solution.OptimumSolution.margin], by
+        which oracle regret intervals are widened."""
+        return np.array([s.margin for s in self.solutions], dtype=np.float64)
+
+    @cached_property
     def max_awake(self) -> np.ndarray:
         """``(people,)`` int64: half-hours awake after which each person's optimal policy always sleeps."""
         return np.array([s.max_awake for s in self.solutions], dtype=np.int64)
@@ -160,7 +168,7 @@ class PeopleOptimum:
 
     def regret(self, person: np.ndarray, expected_returns: np.ndarray) -> OracleRegret:
         """[`oracle_regret`][heartpole.optimum.people.oracle_regret] of episodes of these people."""
-        return oracle_regret(self.expected_returns, person, expected_returns, self.error_bounds)
+        return oracle_regret(self.expected_returns, person, expected_returns, self.margins)
 
 
 def split_people(env_kwargs: Mapping[str, Any] | None) -> tuple[People | None, dict[str, Any]]:
