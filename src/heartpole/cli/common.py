@@ -12,12 +12,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn, TypeAlias
 
+from heartpole import paths
+
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """What ``register(subparsers)`` of each command module receives: ``ArgumentParser.add_subparsers()``."""
 
 
 class CommandError(Exception):
     """A problem the user can fix; printed as one line on stderr with exit code 2."""
+
+
+def error_line(error: Exception) -> str:
+    """A library's error as one line: an ``OSError`` about a file as ``PATH: reason`` (never ``[Errno 28]`` and a
+    quoted name), anything else its message with the line breaks folded."""
+    if isinstance(error, OSError) and error.errno is not None and error.filename is not None:
+        return paths.describe_error(error)
+    return " ".join(str(error).split())
 
 
 def tell_normalization(policy: object) -> None:
@@ -106,8 +116,9 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     and files and folders get the modes the umask gives.
 
     Raises:
-        CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or no
-            permission to write where the file (or its first missing folder) would go.
+        CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or a
+            place the file cannot be written (no permission, a read-only file system, a name too long: see
+            [`writable`][heartpole.cli.common.writable]).
     """
     target = Path(path)
     if suffixes is not None and target.suffix.lower() not in suffixes:
@@ -120,9 +131,18 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     existing = _nearest_existing(target.parent)
     if not existing.is_dir():
         raise CommandError(f"{target}: {existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK):
-        raise CommandError(f"{target}: no permission to write in {existing}")
+    writable(target)
+    paths.expect_output(target)
     return target
+
+
+def writable(target: str | os.PathLike[str]) -> Path:
+    """[`heartpole.paths.check_writable`][heartpole.paths.check_writable] as a one-line
+    [`CommandError`][heartpole.cli.common.CommandError]: ``cannot write PATH: Read-only file system``."""
+    try:
+        return paths.check_writable(target)
+    except OSError as error:
+        raise CommandError(f"cannot write {paths.describe_error(error)}") from None
 
 
 def output_files(folder: str | os.PathLike[str], names: Sequence[str], *, force: bool) -> list[Path]:

@@ -21,6 +21,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    error_line,
     format_table,
     markdown_table,
     output_files,
@@ -218,7 +219,7 @@ def _library(call: Callable[[], T]) -> T:
     try:
         return call()
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
 
 
 def _write_both(first: Path, first_text: str, second: Path, second_text: str) -> None:

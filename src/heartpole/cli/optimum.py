@@ -8,7 +8,15 @@ import sys
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    error_line,
+    format_table,
+    output_files,
+    positive_int,
+    seed_int,
+)
 
 if TYPE_CHECKING:
     from heartpole.evaluation import EvaluationResult
@@ -82,6 +90,8 @@ def run_optimum(args: argparse.Namespace) -> int:
     kwargs = _params(args.param)
     if args.people is not None:
         return _run_people(args, kwargs)
+    if args.out:
+        output_files(args.out, ["optimum.npz", "optimum.json"], force=True)  # before solving: can it be written?
     print(f"solving {args.env}{' ' + str(kwargs) if kwargs else ''}...", file=sys.stderr, flush=True)
     try:
         if args.grid is None:
@@ -92,7 +102,7 @@ def run_optimum(args: argparse.Namespace) -> int:
         if args.out:  # last, so that an interrupted command leaves --out as it was
             solution.save(args.out)
     except (ValueError, TypeError, OSError) as error:  # TypeError: a --param the env does not take
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
     if args.json:
         data = {**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}
         print(json.dumps(data, allow_nan=False))
@@ -117,7 +127,7 @@ def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
             raise CommandError(f"--people {args.people}: {truth}")
         checks = _check(args, env_kwargs, ("oracle", "expert")) if args.check else {}
     except (ValueError, TypeError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
     rows = [
         [person.name, f"{s.expected_return:.5f}", f"{s.error_bound:.1e}", f"{s.expected_sleeps:.2f}", s.max_awake]
         for person, s in zip(truth.people.cohort, truth.solutions)

@@ -231,8 +231,11 @@ def _default_steps(env_id: str) -> int:
     """The episode length of ``env_id`` as registered (for the progress bar)."""
     import gymnasium as gym
 
+    from heartpole.registry import quiet_version_warnings
+
     try:
-        return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
+        with quiet_version_warnings():
+            return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
     except gym.error.Error:
         return 1000
 

@@ -19,7 +19,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
-from heartpole.cli.common import CommandError, Subparsers, add_people_arguments, format_table, one_line_error
+from heartpole import paths
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    add_people_arguments,
+    error_line,
+    format_table,
+    one_line_error,
+)
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -217,7 +225,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
             return preset_config(args.preset, algo, score_rate=score_rate, backend=backend, **overrides)
         config = load_preset(args.preset)
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
     if args.algo is not None and args.algo.lower() != config.algo:
         raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
     if people:
@@ -276,7 +284,8 @@ def run_train(args: argparse.Namespace) -> int:
         out = launch.check_run(config, args.out or launch.default_out(config, args.backend), args.backend,
                                  args.force)  # fmt: skip
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
+    paths.expect_output(out)
     if not args.json:
         _announce(config, seeds, out, args.backend)
     say = None if args.json else lambda run: print(format_run(run), flush=True)
@@ -294,7 +303,7 @@ def run_train(args: argparse.Namespace) -> int:
                 on_run=say, on_compiled=compiled,
             )  # fmt: skip
     except OSError as error:
-        raise CommandError(f"cannot write {out}: {error.strerror or error}") from None
+        raise CommandError(f"cannot write {out}: {error.strerror or error}; nothing written") from None
     if args.json:
         print(json.dumps({"out": str(out), **result}, allow_nan=False))
     elif seeds is None:
