@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn, TypeAlias
 
@@ -49,6 +49,23 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise_arg(f"expected a whole number >= 1, got {value}")
     return value
+
+
+def at_least(minimum: int) -> Callable[[str], int]:
+    """argparse type: an integer >= ``minimum``, refused by the parser with the option's name (``argument --grid:
+    expected a whole number >= 4, got 1``) rather than later by the library without it."""
+
+    def whole(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise_arg(f"expected a whole number >= {minimum}, got {text!r}")
+        if value < minimum:
+            raise_arg(f"expected a whole number >= {minimum}, got {value}")
+        return value
+
+    whole.__name__ = f"whole number >= {minimum}"  # argparse names the type in its own messages
+    return whole
 
 
 def seed_int(text: str) -> int:

@@ -16,6 +16,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    at_least,
     format_table,
     positive_int,
     raise_arg,
@@ -95,7 +96,11 @@ def _register_ope(subparsers: Subparsers) -> None:
     parser.add_argument("--policy", required=True, metavar="P", help="the target policy: " + POLICY_HELP)
     parser.add_argument("--gamma", type=_gamma, default=0.95, metavar="G", help="discount in (0, 1] (default 0.95)")
     parser.add_argument(
-        "--truth-episodes", type=positive_int, default=2000, metavar="N", help="episodes for the truth (default 2000)"
+        "--truth-episodes",
+        type=at_least(2),
+        default=2000,
+        metavar="N",
+        help="episodes for the truth, >= 2 (default 2000)",
     )
     parser.add_argument(
         "--expected-risk",
