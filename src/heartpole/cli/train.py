@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import math
 import os
 import sys
 import types
@@ -254,8 +253,12 @@ def _score_rate(text: str) -> ScoreRate:
         value = float(text)
     except ValueError:
         raise CommandError(f"--score-rate takes best, auto or a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise CommandError(f"--score-rate takes best, auto or a finite number, got {text!r}")
+    from heartpole.training.checks import check_score_rate
+
+    try:
+        check_score_rate("--score-rate", value)
+    except ValueError as error:
+        raise CommandError(str(error)) from None
     return value
 
 
