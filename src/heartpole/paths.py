@@ -57,9 +57,12 @@ def check_writable(target: PathLike) -> Path:
     folder = _nearest_folder(target)
     if not folder.is_dir():
         raise OSError(errno.ENOTDIR, f"{folder} is not a folder", name)
-    longest = _name_max(folder) - TEMPORARY_ROOM
-    if len(target.name.encode()) > longest:
-        raise OSError(errno.ENAMETOOLONG, f"name too long ({len(target.name.encode())} bytes; at most {longest})", name)
+    missing = target.parts[len(folder.parts) :] if target.parts[: len(folder.parts)] == folder.parts else ()
+    for n, part in enumerate(missing or (target.name,)):
+        longest = _name_max(folder) - (TEMPORARY_ROOM if n == len(missing) - 1 or not missing else 0)
+        if len(part.encode()) > longest:
+            reason = f"a name too long ({len(part.encode())} bytes; at most {longest} here)"
+            raise OSError(errno.ENAMETOOLONG, reason, name)
     try:
         probe = tempfile.mkdtemp(prefix=".heartpole-probe.", dir=folder)
     except OSError as error:

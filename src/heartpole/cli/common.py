@@ -40,6 +40,14 @@ def tell_normalization(policy: object) -> None:
         )
 
 
+def not_empty(option: str, value: str | None) -> str | None:
+    """``value`` unless it is the empty string, which names nothing (``--out ''`` must not quietly mean the
+    default): ``CommandError`` naming ``option``."""
+    if value is not None and not value.strip():
+        raise CommandError(f"{option} must name something, got {value!r}; omit {option} to get its default")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -137,6 +145,7 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
             place the file cannot be written (no permission, a read-only file system, a name too long: see
             [`writable`][heartpole.cli.common.writable]).
     """
+    not_empty("--out", os.fspath(path))
     target = Path(path)
     if suffixes is not None and target.suffix.lower() not in suffixes:
         suffix = target.suffix or "(none)"
@@ -165,6 +174,7 @@ def writable(target: str | os.PathLike[str]) -> Path:
 def output_files(folder: str | os.PathLike[str], names: Sequence[str], *, force: bool) -> list[Path]:
     """[`output_file`][heartpole.cli.common.output_file] for each of ``names`` in ``folder`` (created when written if
     missing)."""
+    not_empty("--out", os.fspath(folder))
     base = Path(folder)
     if base.exists() and not base.is_dir():
         raise CommandError(f"{base} is a file, expected a folder")

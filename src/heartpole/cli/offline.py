@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from collections.abc import Callable
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
@@ -18,6 +19,7 @@ from heartpole.cli.common import (
     add_people_arguments,
     at_least,
     format_table,
+    not_empty,
     positive_int,
     raise_arg,
     seed_int,
@@ -31,10 +33,16 @@ ORDER = 40
 WITH_PEOPLE = " with the dataset's people"
 T = TypeVar("T")
 
+OFFLINE_POLICIES = ("random", "nothing", "coffee", "reference", "expert")
+"""The built-in policies a dataset can record and off-policy evaluation can estimate: those that act on the
+observation alone (``optimal`` needs the decisions left, ``oracle`` each episode's person)."""
 POLICY_HELP = (
-    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
-    "'heartpole train'"
+    f"a built-in policy ({', '.join(OFFLINE_POLICIES)}) or the path of a model .zip saved by 'heartpole train'"
 )
+NOT_OFFLINE = {
+    "optimal": "acts on the number of decisions left as well as the observation",
+    "oracle": "acts on each episode's person as well as the observation",
+}
 DATASET_DESCRIPTION = """\
 Record whole episodes of a behaviour policy, which takes a uniformly random action with probability
 EPSILON and its own otherwise, as a Minari dataset. Infos hold the behaviour's action probabilities at
@@ -121,12 +129,15 @@ def run_dataset(args: argparse.Namespace) -> int:
     datasets = _offline("datasets")
     if args.standard == bool(args.policy):
         raise CommandError("give either --policy P or --standard")
+    not_empty("--id", args.dataset_id)
     if args.standard and args.dataset_id:
         raise CommandError("--id names one dataset; it cannot be used with --standard")
     if args.observe_traits and args.people is None:
         raise CommandError("--observe-traits needs --people (the traits are the person's)")
     if args.standard and args.people is not None:
         raise CommandError("--people records one dataset: give --policy P, not --standard")
+    if args.policy is not None:
+        _check_policy(args.policy)
     max_steps = _library(lambda: _max_steps(args.env))
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
@@ -166,6 +177,7 @@ def run_dataset(args: argparse.Namespace) -> int:
 def run_ope(args: argparse.Namespace) -> int:
     """``heartpole ope``: each estimator's estimate, its error against the truth, the truth's interval."""
     ope = _offline("ope")
+    _check_policy(args.policy)
     report = _library(
         lambda: ope.evaluate_off_policy(
             args.dataset,
@@ -227,6 +239,19 @@ def _ci(interval: tuple[float, float]) -> str:
     if not all(math.isfinite(v) for v in interval):
         return "-"
     return f"[{interval[0]:.4f}, {interval[1]:.4f}]"
+
+
+def _check_policy(spec: str) -> str:
+    """``--policy`` checked before anything runs: a built-in policy of the observation alone, or a model path; the
+    error lists exactly what ``--help`` does."""
+    accepted = f"use one of {', '.join(OFFLINE_POLICIES)}, or the path of a model .zip saved by 'heartpole train'"
+    if spec in NOT_OFFLINE:
+        raise CommandError(f"--policy {spec}: it {NOT_OFFLINE[spec]}, which datasets do not record; {accepted}")
+    from heartpole.policies import BUILTIN_POLICIES
+
+    if spec not in BUILTIN_POLICIES and not (spec.endswith(".zip") or "/" in spec or os.path.exists(spec)):
+        raise CommandError(f"unknown policy {spec!r} for --policy; {accepted}")
+    return spec
 
 
 def _offline(module: str) -> ModuleType:

@@ -25,6 +25,7 @@ from heartpole.cli.common import (
     add_people_arguments,
     error_line,
     format_table,
+    not_empty,
     one_line_error,
 )
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
@@ -276,6 +277,7 @@ def run_train(args: argparse.Namespace) -> int:
     if args.backend == "jax" and importlib.util.find_spec("jax") is None:
         raise CommandError("--backend jax needs JAX, which this Python cannot import: pip install 'heartpole[jax]'")
 
+    not_empty("--out", args.out)
     config = build_config(args)
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     episodes = whole_number("--eval-episodes", args.eval_episodes, 2)
