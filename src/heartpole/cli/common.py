@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import NoReturn, TypeAlias
 
 from heartpole import paths
+from heartpole.stats import fixed
 
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """What ``register(subparsers)`` of each command module receives: ``ArgumentParser.add_subparsers()``."""
@@ -121,7 +122,7 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> 
 
 def _cell(value: object) -> str:
     if isinstance(value, float):
-        return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else f"{value:.3f}"
+        return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else fixed(value, 3)
     return str(value)
 
 

@@ -9,6 +9,8 @@ import argparse
 import json
 import math
 import os
+import sys
+import warnings
 from collections.abc import Callable
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
@@ -25,6 +27,7 @@ from heartpole.cli.common import (
     seed_int,
 )
 from heartpole.progress import progress
+from heartpole.stats import fixed
 
 if TYPE_CHECKING:
     from heartpole.offline.ope import OPEReport
@@ -178,16 +181,23 @@ def run_ope(args: argparse.Namespace) -> int:
     """``heartpole ope``: each estimator's estimate, its error against the truth, the truth's interval."""
     ope = _offline("ope")
     _check_policy(args.policy)
-    report = _library(
-        lambda: ope.evaluate_off_policy(
-            args.dataset,
-            args.policy,
-            args.gamma,
-            truth_episodes=args.truth_episodes,
-            seed=args.seed,
-            expected_rewards=args.expected_risk,
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        report = _library(
+            lambda: ope.evaluate_off_policy(
+                args.dataset,
+                args.policy,
+                args.gamma,
+                truth_episodes=args.truth_episodes,
+                seed=args.seed,
+                expected_rewards=args.expected_risk,
+            )
         )
-    )
+    for warning in caught:  # one line each on stderr, not Python's file:line form
+        if issubclass(warning.category, RuntimeWarning):
+            print(f"warning: {warning.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     if args.json:
         print(json.dumps(report.to_dict(), allow_nan=False))
         return 0
@@ -200,13 +210,19 @@ def format_report(report: OPEReport) -> str:
     truth = report.truth
     low, high = truth.value_ci95
     rows = [
-        [e.estimator, f"{e.value:.4f}", _ci(e.ci95), f"{report.error(e):+.4f}", f"{abs(report.error(e)):.4f}"]
+        [
+            e.estimator,
+            fixed(e.value, 4),
+            _ci(e.ci95),
+            fixed(report.error(e), 4, sign=True),
+            fixed(abs(report.error(e)), 4),
+        ]
         for e in report.estimates
     ]
     rewards = "expected-risk rewards" if report.expected_rewards else "realized rewards"
     header = (
         f"{report.policy} from {report.dataset_id}, gamma {report.gamma:g}, {rewards}\n"
-        f"true value {truth.value:.4f} (95% CI [{low:.4f}, {high:.4f}], {truth.episodes} episodes run on the env"
+        f"true value {fixed(truth.value, 4)} (95% CI {_ci((low, high))}, {truth.episodes} episodes run on the env"
         f"{WITH_PEOPLE if report.people else ''})"
     )
     if report.people:
@@ -238,7 +254,7 @@ def _oracle_line(report: OPEReport) -> str:
 def _ci(interval: tuple[float, float]) -> str:
     if not all(math.isfinite(v) for v in interval):
         return "-"
-    return f"[{interval[0]:.4f}, {interval[1]:.4f}]"
+    return f"[{fixed(interval[0], 4)}, {fixed(interval[1], 4)}]"
 
 
 def _check_policy(spec: str) -> str:

@@ -9,6 +9,7 @@ failure never leaves a partial file behind.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -197,6 +198,9 @@ def plot_training(args: argparse.Namespace) -> int:
         curves = {label: plots.read_learning_curve(path) for label, path in found.items()}
     except (OSError, ValueError) as error:
         raise CommandError(str(error)) from None
+    for label, curve in curves.items():
+        for problem in plots.not_finite(curve):
+            print(f"warning: {found[label]}: {problem}; the figure leaves those points out", file=sys.stderr)
     seeds = f", {len(curves)} seeds" if len(curves) > 1 else ""
     _write_figure(plots.training_figure(curves, f"Learning curve: {folder}{seeds}"), target)
     return 0
