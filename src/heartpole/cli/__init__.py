@@ -15,6 +15,7 @@ import os
 import pkgutil
 import signal
 import sys
+import threading
 from collections.abc import Sequence
 from types import ModuleType
 
@@ -111,6 +112,8 @@ def _exit_on_signal(code: int) -> None:
                 pass
         os._exit(code)
 
+    if threading.current_thread() is not threading.main_thread():
+        return  # only the main thread may set handlers (and only it receives signals)
     for s in files.SIGNALS:
         if signal.getsignal(s) not in (signal.SIG_IGN, None):
             signal.signal(s, finish)
