@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import errno
 import os
+import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -178,10 +181,17 @@ def test_output_without_permission(
 ) -> None:
     locked = tmp_path / "locked"
     locked.mkdir()
-    real_access = os.access
-    monkeypatch.setattr(os, "access", lambda path, mode: Path(path) != locked and real_access(path, mode))
-    assert_error(run(capsys, "record", "--policy", "expert", "--out", str(locked / "v.mp4")), "record", "no permission")
-    assert_error(run(capsys, "plot", "model", "--out", str(locked)), "plot", "no permission")
+    real_mkdtemp = tempfile.mkdtemp
+
+    def refused(*args: Any, dir: Any = None, **kwargs: Any) -> str:  # noqa: A002 - tempfile's name
+        if dir is not None and Path(dir) == locked:
+            raise PermissionError(errno.EACCES, "Permission denied", str(locked / ".x"))
+        return real_mkdtemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkdtemp", refused)  # what a folder without write permission does (even as root)
+    record = run(capsys, "record", "--policy", "expert", "--out", str(locked / "v.mp4"))
+    assert_error(record, "record", f"cannot write {locked / 'v.mp4'}: Permission denied")
+    assert_error(run(capsys, "plot", "model", "--out", str(locked)), "plot", "Permission denied")
     assert not list(locked.iterdir())
 
 

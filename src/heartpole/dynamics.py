@@ -10,7 +10,8 @@ state of an episode and no formula: the envs hold the state, [`heartpole.model`]
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -46,9 +47,9 @@ class Dynamics:
         params: Params | None = None,
         variables: Sequence[Variable] = V0_VARIABLES,
     ) -> None:
-        self.actions = tuple(actions)
+        self.actions = _sequence("actions", actions, Action)
         self.params = Params() if params is None else params
-        self.variables = tuple(variables)
+        self.variables = _sequence("variables", variables, Variable)
         _check_definitions(self.actions, self.variables)
         self.names = tuple(v.name for v in self.variables)
         with np.errstate(over="ignore"):  # a number beyond float32 is refused just below, with its name
@@ -121,6 +122,15 @@ def _fade(variable: Variable, params: Params) -> float:
     factor = variable.decay_factor(params)
     # not float(factor): heartpole.jax and heartpole.person_tables run step_tables on arrays of people's decay rates
     return 1.0 if factor is None else factor
+
+
+def _sequence(name: str, value: object, kind: type) -> tuple[Any, ...]:
+    """``value`` as a tuple; ``TypeError`` naming ``name`` when it is not a sequence (a number, a string)."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Iterable):
+        raise TypeError(
+            f"{name} must be a sequence of heartpole.{kind.__name__} objects, got {type(value).__name__} {value!r}"
+        )
+    return tuple(value)
 
 
 def _check_definitions(actions: tuple[Action, ...], variables: tuple[Variable, ...]) -> None:

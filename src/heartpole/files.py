@@ -21,8 +21,13 @@ and never costs what was there before:
 * [`signals_deferred`][heartpole.files.signals_deferred]: moves into place and cleanups run to their end; a signal that
   arrives meanwhile takes effect right after.
 
+An ``OSError`` from a write (a full disk, a read-only file system) names the file or folder being written,
+never the temporary name it was written under; what is moved into place is noted for
+[`heartpole.paths.outputs_placed`][heartpole.paths.outputs_placed], and [`heartpole.paths`][heartpole.paths] checks
+before the work that an output can be written at all.
+
 Files and folders get the modes the umask gives, as ``open`` and ``mkdir`` would. This module imports
-nothing from HeartPole.
+only [`heartpole.paths`][heartpole.paths] from HeartPole.
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from types import FrameType
 from typing import Any, TypeAlias
+
+from heartpole.paths import naming_target, note_placed
 
 PathLike: TypeAlias = "str | os.PathLike[str]"
 
@@ -324,7 +331,8 @@ def atomic_files(*paths: PathLike) -> Iterator[list[Path]]:
     one ``os.replace``. The moves run with signals deferred: the targets are replaced all together or not
     at all (barring a crash or a full disk between two renames). Missing folders are created; if the block
     fails or is interrupted (``KeyboardInterrupt`` and ``SystemExit`` included), the temporary files and
-    the folders this call created are removed, and the targets are as they were.
+    the folders this call created are removed, and the targets are as they were. An ``OSError`` about a
+    temporary file (a full disk, a read-only file system) is raised again about its target.
     """
     targets = [Path(p) for p in paths]
     created: list[Path] = []
@@ -339,11 +347,14 @@ def atomic_files(*paths: PathLike) -> Iterator[list[Path]]:
             for temporary, target in zip(temporaries, targets):
                 os.chmod(temporary, 0o666 & ~umask())  # mkstemp makes files private; give the usual mode
                 os.replace(temporary, target)
-    except BaseException:
+            note_placed(*targets)
+    except BaseException as error:
         with signals_deferred():
             for temporary in temporaries:
                 temporary.unlink(missing_ok=True)
             _remove_if_empty(created)
+        if isinstance(error, OSError):
+            raise naming_target(error, targets, temporaries) from error
         raise
 
 
@@ -398,22 +409,32 @@ def replace_folder(new: PathLike, target: PathLike) -> None:
     """Move the folder ``new`` to ``target``, replacing any folder there, with signals deferred.
 
     An earlier ``target`` is first moved into a hidden sibling (``.NAME.XXXXXXXX.old``), then deleted once
-    ``new`` is in place; if the move fails, it is put back.
+    ``new`` is in place; if the move fails, it is put back, and the hidden sibling is removed whatever failed.
+    An ``OSError`` names ``target``. [`heartpole.paths.check_writable`][heartpole.paths.check_writable] refuses,
+    before any work, the targets that cannot be replaced (a mount point).
     """
     new, target = Path(new), Path(target)
     with signals_deferred():
-        if not target.exists():
-            os.replace(new, target)
-            return
-        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-        os.replace(target, old / target.name)
         try:
-            os.replace(new, target)
-        except BaseException:
-            os.replace(old / target.name, target)
-            raise
-        finally:
-            shutil.rmtree(old, ignore_errors=True)
+            if not target.exists():
+                os.replace(new, target)
+                note_placed(target)
+                return
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            try:
+                os.replace(target, old / target.name)  # a mount point: EBUSY, and the hidden folder goes
+                try:
+                    os.replace(new, target)
+                except BaseException:
+                    os.replace(old / target.name, target)
+                    raise
+            finally:
+                shutil.rmtree(old, ignore_errors=True)
+            note_placed(target)
+        except OSError as error:
+            if error.errno is None:
+                raise
+            raise naming_target(error, [target], []) from error
 
 
 @contextmanager
@@ -459,6 +480,8 @@ def folder_in_place(target: PathLike, keep: Callable[[Path], bool]) -> Iterator[
                     os.replace(old / target.name, target)
                 _remove_if_empty(created)
         raise
+    else:
+        note_placed(target)
     finally:
         if old is not None:
             with signals_deferred():

@@ -18,6 +18,7 @@ from typing import Any
 
 from heartpole.registry import env_dynamics
 from heartpole.training import RunCallback, TrainConfig, check_output_folder, staged_output, train_run, train_seeds
+from heartpole.training.checks import check_config
 from heartpole.training.presets import BACKENDS, Backend
 
 __all__ = ["BACKENDS", "Backend", "check_run", "default_out", "train"]
@@ -43,10 +44,13 @@ def check_run(config: TrainConfig, out: str | os.PathLike[str], backend: Backend
         ``out`` as a ``Path``.
 
     Raises:
-        ValueError: an unknown env id, or settings the backend cannot run.
+        ValueError: an unknown env id, a bad configuration (see
+            [`heartpole.training.checks.check_config`][heartpole.training.checks.check_config]), or settings the
+            backend cannot run.
         OSError: ``out`` may not be written (see `check_output_folder`).
     """
     env_dynamics(config.env_id)
+    check_config(config)
     if backend == "jax":
         from heartpole.jax.ppo import PPOSettings
 

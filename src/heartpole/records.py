@@ -24,7 +24,7 @@ import numpy as np
 from heartpole import files, solved
 from heartpole.policies import CURVE_COLUMNS, MODEL_NAME, SIDECAR_NAME, load_policy
 from heartpole.registry import env_dynamics, solved_bar
-from heartpole.stats import bootstrap_interval, interquartile_mean
+from heartpole.stats import bootstrap_interval, fixed, interquartile_mean
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
@@ -298,11 +298,14 @@ AGGREGATE_LABELS: tuple[tuple[str, str, int], ...] = (
 
 def aggregate_figures(aggregate_: Mapping[str, Any]) -> list[tuple[str, str]]:
     """``(label, "iqm [low, high]")`` for each figure of an [`aggregate`][heartpole.records.aggregate] result,
-    for tables and text."""
+    for tables and text; ``"iqm (one seed: no interval)"`` for one seed, where an interval across seeds has no
+    meaning (its bootstrap would print a zero width)."""
     figures = []
+    one_seed = aggregate_.get("seeds", 2) < 2  # a bootstrap over one seed has zero width: no interval
     for key, label, digits in AGGREGATE_LABELS:
         if key in aggregate_:
             item = aggregate_[key]
             low, high = item["iqm_ci95"]
-            figures.append((label, f"{item['iqm']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"))
+            interval = "(one seed: no interval)" if one_seed else f"[{fixed(low, digits)}, {fixed(high, digits)}]"
+            figures.append((label, f"{fixed(item['iqm'], digits)} {interval}"))
     return figures

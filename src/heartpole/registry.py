@@ -33,7 +33,7 @@ from gymnasium.envs.registration import EnvSpec, parse_env_id
 
 from heartpole.actions import V0_ACTIONS, V1_ACTIONS, V1_VARIABLES, Action, as_action
 from heartpole.dynamics import Dynamics
-from heartpole.env import build_dynamics
+from heartpole.env import build_dynamics, episode_length
 from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords
 from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
 from heartpole.solved import V0_BAR, V1_BAR, SolvedBar
@@ -358,17 +358,24 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
 def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dynamics:
     """The [`Dynamics`][heartpole.dynamics.Dynamics] of the HeartPole env ``env_id`` built with ``env_kwargs``.
 
+    ``max_episode_steps`` is the env's ``max_steps`` here, as for the env itself and ``gymnasium.make_vec``
+    (``gymnasium.make`` alone would give it to its ``TimeLimit`` wrapper and build a 1,000-decision day).
+
     Raises:
-        ValueError: for an unknown id, a bad value or an env that is not a HeartPole.
-        TypeError: for a keyword argument the env does not take.
+        ValueError: for an unknown id, a bad value, ``max_steps`` and ``max_episode_steps`` that disagree, or an
+            env that is not a HeartPole.
+        TypeError: for a keyword argument the env does not take, or a value of the wrong type.
     """
+    kwargs = dict(env_kwargs or {})
+    if "max_episode_steps" in kwargs:  # gym.make hands it to its TimeLimit only; the env takes it, as make_vec does
+        kwargs["max_steps"] = episode_length(kwargs.get("max_steps"), kwargs["max_episode_steps"])
     try:
         with quiet_version_warnings():
-            env = gym.make(env_id, **dict(env_kwargs or {}))
+            env = gym.make(env_id, **kwargs)
     except gym.error.Error as error:
         raise ValueError(f"unknown env {env_id!r} ({one_line(error)}); HeartPole envs: {_heartpole_ids()}") from None
     except TypeError as error:  # an unexpected keyword stays Python's TypeError, which callers branch on
-        raise TypeError(f"env {env_id!r}: {one_line(error)}") from None
+        raise TypeError(f"env {env_id!r}: {_without_creator_tail(error)}") from None
     dynamics = getattr(env.unwrapped, "dynamics", None)
     env.close()
     if not isinstance(dynamics, Dynamics):
@@ -382,6 +389,12 @@ def quiet_version_warnings() -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*is out of date.*", category=DeprecationWarning)
         yield
+
+
+def _without_creator_tail(error: BaseException) -> str:
+    """``error``'s message without the tail Gymnasium's ``make`` adds ("was raised from the environment creator
+    for ID with kwargs (...)"), which repeats what the caller gave."""
+    return re.sub(r"\s*was raised from the environment creator for .*$", "", one_line(error))
 
 
 def one_line(error: BaseException) -> str:

@@ -119,3 +119,16 @@ def json_number(value: float) -> float | None:
 def json_interval(interval: Sequence[float]) -> list[float | None]:
     """An interval for JSON: its ends, ``null`` where there is none (fewer than two episodes)."""
     return [json_number(end) for end in interval]
+
+
+def fixed(value: float, digits: int, *, sign: bool = False) -> str:
+    """``value`` with ``digits`` decimals (and a ``+`` before positive ones with ``sign``), never a negative zero:
+    a difference that rounds to zero reads ``0.0000``, not ``-0.0000``.
+
+    >>> fixed(-1e-9, 5), fixed(-0.0, 2, sign=True), fixed(-0.25, 2), fixed(0.25, 2, sign=True)
+    ('0.00000', '+0.00', '-0.25', '+0.25')
+    """
+    text = f"{value:+.{digits}f}" if sign else f"{value:.{digits}f}"
+    if text.startswith("-") and not any(c in "123456789" for c in text):
+        text = ("+" if sign else "") + text[1:]
+    return text

@@ -9,16 +9,22 @@ files) end in one clear line on stderr and exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import pkgutil
 import signal
 import sys
+import threading
 from collections.abc import Sequence
 from types import ModuleType
 
-from heartpole import files
+from heartpole import files, paths
 from heartpole.cli.common import CommandError
+
+WRITE_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO})
+"""The ``OSError`` numbers of a place that cannot take the output (a full disk, a quota, a read-only file system,
+no permission): said in one line naming the output, exit code 2."""
 
 DESCRIPTION = """\
 HeartPole: CartPole for health. An agent decides every half-hour of a working day whether to do
@@ -57,30 +63,60 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``heartpole`` command with ``argv`` (default: ``sys.argv[1:]``); return the exit code.
 
     Ended by SIGINT (Ctrl-C), SIGTERM or SIGHUP, a command cleans up what it was writing (see
-    [`heartpole.files`][heartpole.files]), says so on stderr and returns 128 + the signal's number: 130, 143 or 129.
+    [`heartpole.files`][heartpole.files]), says so on stderr and returns 128 + the signal's number: 130, 143 or 129,
+    which says that its output is as it was. A signal that arrives once the command's new output is in place
+    (complete) ends it as a success, 0. Called without ``argv`` (as the ``heartpole`` command is), a signal after
+    the command returned, while Python shuts down, ends the process at once with the command's exit code.
     """
     command = ["heartpole"]
+    paths.forget_outputs()
     try:
         with files.signal_policy():  # first thing: from here on, a signal unwinds through every cleanup
             try:
-                return _run(argv, command)
+                code = _run(argv, command)
             except KeyboardInterrupt:  # files.Interrupted, or a KeyboardInterrupt a library raised
-                _say_interrupted(command)
-                return files.exit_code()
+                code = _interrupted(command)
             except Exception:
                 if files.received_signal() is None:
                     raise
                 # A library's cleanup failed on the way out of the signal and replaced the Interrupted
                 # (torch's zip writer raises RuntimeError when its write was cut short): still a signal.
-                _say_interrupted(command)
-                return files.exit_code()
+                code = _interrupted(command)
     except KeyboardInterrupt:  # another signal while saying so, or while the handlers were put back
-        return files.exit_code()
+        code = 0 if paths.outputs_placed() else files.exit_code()
+    if argv is None:
+        _exit_on_signal(code)
+    return code
 
 
-def _say_interrupted(command: list[str]) -> None:
+def _interrupted(command: list[str]) -> int:
+    """Say how the signal ended the command; its exit code: 0 when the new output was already in place."""
     name = signal.Signals(files.exit_code() - 128).name
+    if paths.outputs_placed():
+        print(f"{' '.join(command)}: {name} arrived after the output was written; it is complete", file=sys.stderr)
+        return 0
     print(f"{' '.join(command)}: interrupted by {name}", file=sys.stderr)
+    return files.exit_code()
+
+
+def _exit_on_signal(code: int) -> None:
+    """From now until the process ends (Python shutting down: threads joined, modules torn down), SIGINT,
+    SIGTERM and SIGHUP end it at once with ``code``, the command's own exit status, not with the signal's:
+    the command is over, and its output is what ``code`` says. Ignored signals stay ignored."""
+
+    def finish(signum: int, frame: object) -> None:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+
+    if threading.current_thread() is not threading.main_thread():
+        return  # only the main thread may set handlers (and only it receives signals)
+    for s in files.SIGNALS:
+        if signal.getsignal(s) not in (signal.SIG_IGN, None):
+            signal.signal(s, finish)
 
 
 def _run(argv: Sequence[str] | None, command: list[str]) -> int:
@@ -96,6 +132,13 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
         if files.received_signal() is not None:  # the signal's doing (an import it cut short): still a signal
             raise files.interruption() from error
         print(f"heartpole {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        if error.errno not in WRITE_ERRORS or error.filename is None:
+            raise
+        # A full disk or a read-only file system met while writing: heartpole.files removed what it had
+        # written, and named the output (not its temporary name).
+        print(f"heartpole {args.command}: error: cannot write {paths.describe_error(error)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet

@@ -8,9 +8,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn, TypeAlias
+
+from heartpole import paths
+from heartpole.stats import fixed
 
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """What ``register(subparsers)`` of each command module receives: ``ArgumentParser.add_subparsers()``."""
@@ -18,6 +21,14 @@ Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 class CommandError(Exception):
     """A problem the user can fix; printed as one line on stderr with exit code 2."""
+
+
+def error_line(error: Exception) -> str:
+    """A library's error as one line: an ``OSError`` about a file as ``PATH: reason`` (never ``[Errno 28]`` and a
+    quoted name), anything else its message with the line breaks folded."""
+    if isinstance(error, OSError) and error.errno is not None and error.filename is not None:
+        return paths.describe_error(error)
+    return " ".join(str(error).split())
 
 
 def tell_normalization(policy: object) -> None:
@@ -30,6 +41,14 @@ def tell_normalization(policy: object) -> None:
         )
 
 
+def not_empty(option: str, value: str | None) -> str | None:
+    """``value`` unless it is the empty string, which names nothing (``--out ''`` must not quietly mean the
+    default): ``CommandError`` naming ``option``."""
+    if value is not None and not value.strip():
+        raise CommandError(f"{option} must name something, got {value!r}; omit {option} to get its default")
+    return value
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:
@@ -39,6 +58,23 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise_arg(f"expected a whole number >= 1, got {value}")
     return value
+
+
+def at_least(minimum: int) -> Callable[[str], int]:
+    """argparse type: an integer >= ``minimum``, refused by the parser with the option's name (``argument --grid:
+    expected a whole number >= 4, got 1``) rather than later by the library without it."""
+
+    def whole(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise_arg(f"expected a whole number >= {minimum}, got {text!r}")
+        if value < minimum:
+            raise_arg(f"expected a whole number >= {minimum}, got {value}")
+        return value
+
+    whole.__name__ = f"whole number >= {minimum}"  # argparse names the type in its own messages
+    return whole
 
 
 def seed_int(text: str) -> int:
@@ -86,7 +122,7 @@ def markdown_table(headers: Sequence[str], rows: Sequence[Sequence[object]]) -> 
 
 def _cell(value: object) -> str:
     if isinstance(value, float):
-        return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else f"{value:.3f}"
+        return f"{value:.4g}" if abs(value) < 1e-3 and value != 0 else fixed(value, 3)
     return str(value)
 
 
@@ -106,9 +142,11 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     and files and folders get the modes the umask gives.
 
     Raises:
-        CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or no
-            permission to write where the file (or its first missing folder) would go.
+        CommandError: an unaccepted suffix, a folder in the way, an existing file without ``force``, or a
+            place the file cannot be written (no permission, a read-only file system, a name too long: see
+            [`writable`][heartpole.cli.common.writable]).
     """
+    not_empty("--out", os.fspath(path))
     target = Path(path)
     if suffixes is not None and target.suffix.lower() not in suffixes:
         suffix = target.suffix or "(none)"
@@ -120,14 +158,24 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     existing = _nearest_existing(target.parent)
     if not existing.is_dir():
         raise CommandError(f"{target}: {existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK):
-        raise CommandError(f"{target}: no permission to write in {existing}")
+    writable(target)
+    paths.expect_output(target)
     return target
+
+
+def writable(target: str | os.PathLike[str]) -> Path:
+    """[`heartpole.paths.check_writable`][heartpole.paths.check_writable] as a one-line
+    [`CommandError`][heartpole.cli.common.CommandError]: ``cannot write PATH: Read-only file system``."""
+    try:
+        return paths.check_writable(target)
+    except OSError as error:
+        raise CommandError(f"cannot write {paths.describe_error(error)}") from None
 
 
 def output_files(folder: str | os.PathLike[str], names: Sequence[str], *, force: bool) -> list[Path]:
     """[`output_file`][heartpole.cli.common.output_file] for each of ``names`` in ``folder`` (created when written if
     missing)."""
+    not_empty("--out", os.fspath(folder))
     base = Path(folder)
     if base.exists() and not base.is_dir():
         raise CommandError(f"{base} is a file, expected a folder")

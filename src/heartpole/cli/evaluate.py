@@ -21,6 +21,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    error_line,
     format_table,
     markdown_table,
     output_files,
@@ -29,6 +30,7 @@ from heartpole.cli.common import (
     tell_normalization,
 )
 from heartpole.progress import progress
+from heartpole.stats import fixed
 
 if TYPE_CHECKING:
     from heartpole.evaluation import Comparison, EvaluationResult, PolicyLike
@@ -218,7 +220,7 @@ def _library(call: Callable[[], T]) -> T:
     try:
         return call()
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
 
 
 def _write_both(first: Path, first_text: str, second: Path, second_text: str) -> None:
@@ -236,8 +238,8 @@ def _interval(value: float, interval: Sequence[float], digits: int) -> list[str]
     """``[value, "[low, high]"]`` as text; ``-`` for an interval that is missing (fewer than 2 episodes)."""
     from heartpole.reporting import has_interval
 
-    shown = f"[{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]" if has_interval(interval) else "-"
-    return [f"{value:.{digits}f}", shown]
+    shown = f"[{fixed(interval[0], digits)}, {fixed(interval[1], digits)}]" if has_interval(interval) else "-"
+    return [fixed(value, digits), shown]
 
 
 def _joined(value: float, interval: Sequence[float], digits: int) -> str:
@@ -294,11 +296,11 @@ def _width_note(result: EvaluationResult) -> list[str]:
 def _solved_line(result: EvaluationResult) -> str:
     from heartpole.solved import SOLVED_REGRET
 
-    verdict = "solved" if result.solved else "not solved"
-    return (
-        f"optimum {result.optimal_return:.5f}; {verdict} by the regret bar "
-        f"(95% upper bound {result.regret_ci95[1]:.5f} <= {SOLVED_REGRET})"
-    )
+    bound = f"the regret's 95% upper bound {fixed(result.regret_ci95[1], 5)}"
+    if result.solved:
+        return f"optimum {result.optimal_return:.5f}; solved: {bound} <= {SOLVED_REGRET} (the regret bar)"
+    bar = f"(the regret bar: <= {SOLVED_REGRET})"
+    return f"optimum {result.optimal_return:.5f}; not solved: {bound} > {SOLVED_REGRET} {bar}"
 
 
 def format_comparison(comparison: Comparison) -> str:

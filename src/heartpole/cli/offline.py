@@ -8,6 +8,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import sys
+import warnings
 from collections.abc import Callable
 from types import ModuleType
 from typing import TYPE_CHECKING, TypeVar
@@ -16,12 +19,15 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    at_least,
     format_table,
+    not_empty,
     positive_int,
     raise_arg,
     seed_int,
 )
 from heartpole.progress import progress
+from heartpole.stats import fixed
 
 if TYPE_CHECKING:
     from heartpole.measurement import Measurement
@@ -31,10 +37,16 @@ ORDER = 40
 WITH_PEOPLE = " with the dataset's people"
 T = TypeVar("T")
 
+OFFLINE_POLICIES = ("random", "nothing", "coffee", "reference", "expert")
+"""The built-in policies a dataset can record and off-policy evaluation can estimate: those that act on the
+observation alone (``optimal`` needs the decisions left, ``oracle`` each episode's person)."""
 POLICY_HELP = (
-    "a built-in policy (random, nothing, coffee, reference, expert) or the path of a model .zip saved by "
-    "'heartpole train'"
+    f"a built-in policy ({', '.join(OFFLINE_POLICIES)}) or the path of a model .zip saved by 'heartpole train'"
 )
+NOT_OFFLINE = {
+    "optimal": "acts on the number of decisions left as well as the observation",
+    "oracle": "acts on each episode's person as well as the observation",
+}
 DATASET_DESCRIPTION = """\
 Record whole episodes of a behaviour policy, which takes a uniformly random action with probability
 EPSILON and its own otherwise, as a Minari dataset. Infos hold the behaviour's action probabilities at
@@ -103,7 +115,11 @@ def _register_ope(subparsers: Subparsers) -> None:
     parser.add_argument("--policy", required=True, metavar="P", help="the target policy: " + POLICY_HELP)
     parser.add_argument("--gamma", type=_gamma, default=0.95, metavar="G", help="discount in (0, 1] (default 0.95)")
     parser.add_argument(
-        "--truth-episodes", type=positive_int, default=2000, metavar="N", help="episodes for the truth (default 2000)"
+        "--truth-episodes",
+        type=at_least(2),
+        default=2000,
+        metavar="N",
+        help="episodes for the truth, >= 2 (default 2000)",
     )
     parser.add_argument(
         "--expected-risk",
@@ -124,6 +140,7 @@ def run_dataset(args: argparse.Namespace) -> int:
     datasets = _offline("datasets")
     if args.standard == bool(args.policy):
         raise CommandError("give either --policy P or --standard")
+    not_empty("--id", args.dataset_id)
     if args.standard and args.dataset_id:
         raise CommandError("--id names one dataset; it cannot be used with --standard")
     if args.observe_traits and args.people is None:
@@ -132,6 +149,8 @@ def run_dataset(args: argparse.Namespace) -> int:
         raise CommandError("--people records one dataset: give --policy P, not --standard")
     if args.standard and args.measurement is not None:
         raise CommandError("--measurement records one dataset: give --policy P, not --standard")
+    if args.policy is not None:
+        _check_policy(args.policy)
     max_steps = _library(lambda: _max_steps(args.env))
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
@@ -173,16 +192,24 @@ def run_dataset(args: argparse.Namespace) -> int:
 def run_ope(args: argparse.Namespace) -> int:
     """``heartpole ope``: each estimator's estimate, its error against the truth, the truth's interval."""
     ope = _offline("ope")
-    report = _library(
-        lambda: ope.evaluate_off_policy(
-            args.dataset,
-            args.policy,
-            args.gamma,
-            truth_episodes=args.truth_episodes,
-            seed=args.seed,
-            expected_rewards=args.expected_risk,
+    _check_policy(args.policy)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)
+        report = _library(
+            lambda: ope.evaluate_off_policy(
+                args.dataset,
+                args.policy,
+                args.gamma,
+                truth_episodes=args.truth_episodes,
+                seed=args.seed,
+                expected_rewards=args.expected_risk,
+            )
         )
-    )
+    for warning in caught:  # one line each on stderr, not Python's file:line form
+        if issubclass(warning.category, RuntimeWarning):
+            print(f"warning: {warning.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
     if args.json:
         print(json.dumps(report.to_dict(), allow_nan=False))
         return 0
@@ -195,13 +222,19 @@ def format_report(report: OPEReport) -> str:
     truth = report.truth
     low, high = truth.value_ci95
     rows = [
-        [e.estimator, f"{e.value:.4f}", _ci(e.ci95), f"{report.error(e):+.4f}", f"{abs(report.error(e)):.4f}"]
+        [
+            e.estimator,
+            fixed(e.value, 4),
+            _ci(e.ci95),
+            fixed(report.error(e), 4, sign=True),
+            fixed(abs(report.error(e)), 4),
+        ]
         for e in report.estimates
     ]
     rewards = "expected-risk rewards" if report.expected_rewards else "realized rewards"
     header = (
         f"{report.policy} from {report.dataset_id}, gamma {report.gamma:g}, {rewards}\n"
-        f"true value {truth.value:.4f} (95% CI [{low:.4f}, {high:.4f}], {truth.episodes} episodes run on the env"
+        f"true value {fixed(truth.value, 4)} (95% CI {_ci((low, high))}, {truth.episodes} episodes run on the env"
         f"{WITH_PEOPLE if report.people else ''})"
     )
     if report.people:
@@ -250,7 +283,20 @@ def _oracle_line(report: OPEReport) -> str:
 def _ci(interval: tuple[float, float]) -> str:
     if not all(math.isfinite(v) for v in interval):
         return "-"
-    return f"[{interval[0]:.4f}, {interval[1]:.4f}]"
+    return f"[{fixed(interval[0], 4)}, {fixed(interval[1], 4)}]"
+
+
+def _check_policy(spec: str) -> str:
+    """``--policy`` checked before anything runs: a built-in policy of the observation alone, or a model path; the
+    error lists exactly what ``--help`` does."""
+    accepted = f"use one of {', '.join(OFFLINE_POLICIES)}, or the path of a model .zip saved by 'heartpole train'"
+    if spec in NOT_OFFLINE:
+        raise CommandError(f"--policy {spec}: it {NOT_OFFLINE[spec]}, which datasets do not record; {accepted}")
+    from heartpole.policies import BUILTIN_POLICIES
+
+    if spec not in BUILTIN_POLICIES and not (spec.endswith(".zip") or "/" in spec or os.path.exists(spec)):
+        raise CommandError(f"unknown policy {spec!r} for --policy; {accepted}")
+    return spec
 
 
 def _offline(module: str) -> ModuleType:

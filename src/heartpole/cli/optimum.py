@@ -8,7 +8,15 @@ import sys
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from heartpole.cli.common import CommandError, Subparsers, format_table, positive_int, seed_int
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    at_least,
+    error_line,
+    format_table,
+    output_files,
+    seed_int,
+)
 
 if TYPE_CHECKING:
     from heartpole.evaluation import EvaluationResult
@@ -58,11 +66,11 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument("--out", metavar="DIR", help="save the solution there (optimum.json and optimum.npz)")
     parser.add_argument(
-        "--grid", type=positive_int, default=None, metavar="N", help="waking-alertness grid points (default: 400)"
+        "--grid", type=at_least(4), default=None, metavar="N", help="waking-alertness grid points, >= 4 (default: 400)"
     )
     parser.add_argument(
         "--check",
-        type=int,
+        type=at_least(0),
         default=2000,
         metavar="EPISODES",
         help="episodes of the Monte-Carlo check through the evaluator (default 2000; 0 skips it)",
@@ -77,11 +85,11 @@ def run_optimum(args: argparse.Namespace) -> int:
     """Solve (or load from the cache), check, save and print."""
     from heartpole import optimum
 
-    if args.check < 0:
-        raise CommandError(f"--check must be an integer >= 0, got {args.check}")
     kwargs = _params(args.param)
     if args.people is not None:
         return _run_people(args, kwargs)
+    if args.out:
+        output_files(args.out, ["optimum.npz", "optimum.json"], force=True)  # before solving: can it be written?
     print(f"solving {args.env}{' ' + str(kwargs) if kwargs else ''}...", file=sys.stderr, flush=True)
     try:
         if args.grid is None:
@@ -92,7 +100,7 @@ def run_optimum(args: argparse.Namespace) -> int:
         if args.out:  # last, so that an interrupted command leaves --out as it was
             solution.save(args.out)
     except (ValueError, TypeError, OSError) as error:  # TypeError: a --param the env does not take
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(_param_error(error, args.param)) from None
     if args.json:
         data = {**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}
         print(json.dumps(data, allow_nan=False))
@@ -117,7 +125,7 @@ def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
             raise CommandError(f"--people {args.people}: {truth}")
         checks = _check(args, env_kwargs, ("oracle", "expert")) if args.check else {}
     except (ValueError, TypeError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
     rows = [
         [person.name, f"{s.expected_return:.5f}", f"{s.error_bound:.1e}", f"{s.expected_sleeps:.2f}", s.max_awake]
         for person, s in zip(truth.people.cohort, truth.solutions)
@@ -133,6 +141,15 @@ def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
         low, high = result.oracle_regret_ci95
         print(f"{name}: oracle regret {result.oracle_regret:.5f} [{low:.5f}, {high:.5f}] ({result.episodes} episodes)")
     return 0
+
+
+def _param_error(error: Exception, items: list[str]) -> str:
+    """The error's line; one the env raised about the keyword arguments (a keyword it does not take, a value of the
+    wrong type) names the ``--param`` options given."""
+    line = error_line(error)
+    if isinstance(error, TypeError) and items:
+        return f"--param {' --param '.join(items)}: {line}"
+    return line
 
 
 def _params(items: list[str]) -> dict[str, Any]:

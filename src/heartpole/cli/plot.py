@@ -9,6 +9,7 @@ failure never leaves a partial file behind.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -197,6 +198,9 @@ def plot_training(args: argparse.Namespace) -> int:
         curves = {label: plots.read_learning_curve(path) for label, path in found.items()}
     except (OSError, ValueError) as error:
         raise CommandError(str(error)) from None
+    for label, curve in curves.items():
+        for problem in plots.not_finite(curve):
+            print(f"warning: {found[label]}: {problem}; the figure leaves those points out", file=sys.stderr)
     seeds = f", {len(curves)} seeds" if len(curves) > 1 else ""
     _write_figure(plots.training_figure(curves, f"Learning curve: {folder}{seeds}"), target)
     return 0
@@ -231,8 +235,11 @@ def _default_steps(env_id: str) -> int:
     """The episode length of ``env_id`` as registered (for the progress bar)."""
     import gymnasium as gym
 
+    from heartpole.registry import quiet_version_warnings
+
     try:
-        return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
+        with quiet_version_warnings():
+            return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
     except gym.error.Error:
         return 1000
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import math
 import os
 import sys
 import types
@@ -19,7 +18,16 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, overload
 
-from heartpole.cli.common import CommandError, Subparsers, add_people_arguments, format_table, one_line_error
+from heartpole import paths
+from heartpole.cli.common import (
+    CommandError,
+    Subparsers,
+    add_people_arguments,
+    error_line,
+    format_table,
+    not_empty,
+    one_line_error,
+)
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -217,7 +225,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
             return preset_config(args.preset, algo, score_rate=score_rate, backend=backend, **overrides)
         config = load_preset(args.preset)
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
     if args.algo is not None and args.algo.lower() != config.algo:
         raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
     if people:
@@ -246,8 +254,12 @@ def _score_rate(text: str) -> ScoreRate:
         value = float(text)
     except ValueError:
         raise CommandError(f"--score-rate takes best, auto or a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise CommandError(f"--score-rate takes best, auto or a finite number, got {text!r}")
+    from heartpole.training.checks import check_score_rate
+
+    try:
+        check_score_rate("--score-rate", value)
+    except ValueError as error:
+        raise CommandError(str(error)) from None
     return value
 
 
@@ -265,6 +277,7 @@ def run_train(args: argparse.Namespace) -> int:
     if args.backend == "jax" and importlib.util.find_spec("jax") is None:
         raise CommandError("--backend jax needs JAX, which this Python cannot import: pip install 'heartpole[jax]'")
 
+    not_empty("--out", args.out)
     config = build_config(args)
     seeds = parse_seeds(args.seeds) if args.seeds is not None else None
     episodes = whole_number("--eval-episodes", args.eval_episodes, 2)
@@ -276,7 +289,8 @@ def run_train(args: argparse.Namespace) -> int:
         out = launch.check_run(config, args.out or launch.default_out(config, args.backend), args.backend,
                                  args.force)  # fmt: skip
     except (ValueError, OSError) as error:
-        raise CommandError(" ".join(str(error).split())) from None
+        raise CommandError(error_line(error)) from None
+    paths.expect_output(out)
     if not args.json:
         _announce(config, seeds, out, args.backend)
     say = None if args.json else lambda run: print(format_run(run), flush=True)
@@ -294,7 +308,7 @@ def run_train(args: argparse.Namespace) -> int:
                 on_run=say, on_compiled=compiled,
             )  # fmt: skip
     except OSError as error:
-        raise CommandError(f"cannot write {out}: {error.strerror or error}") from None
+        raise CommandError(f"cannot write {out}: {error.strerror or error}; nothing written") from None
     if args.json:
         print(json.dumps({"out": str(out), **result}, allow_nan=False))
     elif seeds is None:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from heartpole import files
-from heartpole.cli.common import CommandError, Subparsers, format_table, one_line_error
+from heartpole.cli.common import CommandError, Subparsers, format_table, not_empty, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
     format_cpu,
@@ -130,7 +130,7 @@ def run_tune(args: argparse.Namespace) -> int:
         env_dynamics(settings.base.env_id)
     except ValueError as error:
         raise CommandError(" ".join(str(error).split())) from None
-    out = Path(args.out or f"runs/tune-{settings.base.algo}").resolve()
+    out = Path(not_empty("--out", args.out) or f"runs/tune-{settings.base.algo}").resolve()
     try:
         scale.prepare_search_folder(out, args.resume, args.force)
     except ValueError as error:

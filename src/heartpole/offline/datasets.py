@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from minari import MinariDataset
     from minari.data_collector import EpisodeBuffer
 
-from heartpole import files
+from heartpole import files, paths
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.measurement import Measurement
 from heartpole.model import check_integer
@@ -205,7 +205,7 @@ def _plan(
     base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
     components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
-    target_id = dataset_id or default_dataset_id(name + suffix, env_id)
+    target_id = default_dataset_id(name + suffix, env_id) if dataset_id is None else dataset_id
     _check_dataset_id(target_id)
     if not force and _exists(target_id):
         raise FileExistsError(
@@ -334,7 +334,13 @@ def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
     """``policy`` (any of the components the caller was given) as a [`Policy`][heartpole.policies.Policy], or a
     ``ValueError``."""
     if isinstance(policy, str):
-        return load_policy(policy, env_id, rng=policy_rng(seed, index))
+        loaded = load_policy(policy, env_id, rng=policy_rng(seed, index))
+        if getattr(loaded, "needs_decisions_left", False) or getattr(loaded, "needs_person", False):
+            raise ValueError(
+                f"policy {policy!r} acts on more than the observation (the decisions left, or the person), which a "
+                "dataset does not record; record a policy of the observation alone"
+            )
+        return loaded
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
     return cast(Policy, policy)  # callable: that it maps observation batches to actions is the caller's promise
@@ -426,7 +432,8 @@ def _minari_root(path: Path) -> Iterator[None]:
 
 
 def _check_dataset_id(target_id: str) -> None:
-    """Minari's own id grammar, checked before anything runs."""
+    """Minari's own id grammar, and that the dataset can be written in Minari's folder, checked before anything
+    runs."""
     from minari.dataset.minari_dataset import parse_dataset_id
 
     try:
@@ -436,6 +443,11 @@ def _check_dataset_id(target_id: str) -> None:
             f"dataset id must read [namespace/]name-vN as Minari accepts it (e.g. heartpole/v0/mine-v0), "
             f"got {target_id!r}"
         ) from None
+    try:
+        paths.check_writable(_root() / target_id)  # a name too long, a read-only folder: now, not once recorded
+    except OSError as error:
+        shown = target_id if len(target_id) <= 60 else f"{target_id[:40]}...{target_id[-10:]}"
+        raise ValueError(f"dataset id {shown!r} ({len(target_id)} characters): {error.strerror}") from None
 
 
 def _slug(text: str) -> str:

@@ -28,6 +28,7 @@ regret (see [`heartpole.offline.population`][heartpole.offline.population]).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -55,6 +56,9 @@ from heartpole.stats import confidence_interval, json_interval, json_number
 ESTIMATORS = ("PDIS", "WPDIS", "FQE", "DR")
 DEFAULT_RIDGE = 1e-6
 NAN_PAIR = (math.nan, math.nan)
+LOW_SUPPORT = 0.01
+"""Below this share of a dataset's steps taking the target's action ([`support`][heartpole.offline.ope.support]),
+[`estimate_all`][heartpole.offline.ope.estimate_all] warns that its estimates rest on almost nothing."""
 
 
 @dataclass(frozen=True)
@@ -224,11 +228,17 @@ def estimate_all(
             (``Trajectories.expected_rewards``): same expectation, less noise.
         ridge: FQE's L2 penalty.
         featurize: FQE's features (default: [`features`][heartpole.offline.ope.features]).
+
+    Warns:
+        RuntimeWarning: when the dataset's actions are the target's at fewer than
+            [`LOW_SUPPORT`][heartpole.offline.ope.LOW_SUPPORT] of its steps (never, for a target the behaviour never
+            followed: an epsilon-0 dataset of another policy): the estimates then rest on almost nothing.
     """
     if not 0.0 < float(gamma) <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
     target = target_probabilities(policy, trajectories)
     weights = importance_weights(target, trajectories)
+    _warn_on_support(target, trajectories)
     rewards = trajectories.expected_rewards() if expected_rewards else trajectories.rewards
     fqe = LinearFQE(gamma, ridge, featurize).fit(trajectories, target, rewards)
     q = fqe.q_values(trajectories.observations)
@@ -240,6 +250,29 @@ def estimate_all(
         Estimate("FQE", float(v[:, 0].mean())),
         doubly_robust(weights, rewards, q_taken, v, gamma),
     ]
+
+
+def support(target: np.ndarray, trajectories: Trajectories) -> float:
+    """The share of the dataset's steps whose recorded action the target policy takes with a positive probability
+    (``target`` from [`target_probabilities`][heartpole.offline.ope.target_probabilities]): what the
+    importance-sampling estimators have to weigh."""
+    chosen = np.take_along_axis(target[:, :-1], trajectories.actions[..., None], axis=2)[..., 0]
+    return float(np.mean(chosen > 0)) if chosen.size else 0.0
+
+
+def _warn_on_support(target: np.ndarray, trajectories: Trajectories) -> None:
+    share = support(target, trajectories)
+    if share >= LOW_SUPPORT:
+        return
+    steps = trajectories.actions.size
+    seen = "never took an action the target would take" if share == 0 else f"took the target's action at {share:.2%}"
+    warnings.warn(
+        f"the dataset {seen} ({steps:,} steps): importance sampling (PDIS, WPDIS, DR's correction) has "
+        f"{'nothing' if share == 0 else 'almost nothing'} to weigh and FQE extrapolates, so these estimates say "
+        "little; record a behaviour that explores (epsilon > 0) or one closer to the target",
+        RuntimeWarning,
+        stacklevel=3,
+    )
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ import functools
 import hashlib
 import json
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -140,7 +141,8 @@ class OptimumSolution:
 
         Raises:
             FileNotFoundError: a missing file.
-            ValueError: files that are not a solution of this solver version.
+            ValueError: files that are not a solution of this solver version, or that cannot be read (cut
+                short, damaged, not what they should hold).
         """
         directory = Path(directory)
         for name in ("optimum.json", "optimum.npz"):
@@ -165,8 +167,9 @@ class OptimumSolution:
                 thresholds=thresholds,
                 **{key: float(meta[key]) for key in fields},
             )
-        except (KeyError, TypeError, ValueError, OSError) as error:
-            raise ValueError(f"{directory}: not a HeartPole optimum ({' '.join(str(error).split())})") from None
+        except Exception as error:  # noqa: BLE001 - whatever a damaged file raises (BadZipFile, EOFError, ...)
+            reason = " ".join(str(error).split()) or type(error).__name__
+            raise ValueError(f"{directory}: not a HeartPole optimum ({reason})") from None
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -188,6 +191,7 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
     from heartpole.registry import env_dynamics
 
     check_integer("grid", grid, 4)
+    _one_person(env_kwargs)
     dynamics = env_dynamics(env_id, env_kwargs)
     check_covered(env_id, dynamics)
     return _solve(dynamics.params, int(grid), env_id, dict(env_kwargs))
@@ -220,7 +224,8 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
     """The solution for ``env_id`` and ``env_kwargs``, solved once: kept in memory and in the user cache.
 
     The disk cache lives in ``$HEARTPOLE_CACHE_DIR``, else ``$XDG_CACHE_HOME/heartpole``, else
-    ``~/.cache/heartpole``, under ``optimum/<hash of the parameters and solver version>/``.
+    ``~/.cache/heartpole``, under ``optimum/<hash of the parameters and solver version>/``. An entry there that
+    cannot be read (cut short, damaged) is solved again and replaced, with a ``RuntimeWarning`` saying so.
 
     Raises:
         NotCoveredError, ValueError: as [`solve`][heartpole.optimum.solution.solve].
@@ -228,7 +233,17 @@ def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None =
     from heartpole.registry import env_dynamics
 
     kwargs = dict(env_kwargs or {})
+    _one_person(kwargs)
     return optimum_for(env_dynamics(env_id, kwargs), env_id, kwargs)
+
+
+def _one_person(env_kwargs: Mapping[str, Any]) -> None:
+    """Refuse a population: it has one optimum per person, never one for all."""
+    if env_kwargs.get("people") is not None:
+        raise NotCoveredError(
+            f"people={env_kwargs['people']!r} is a population, with one optimum per person and none for all of "
+            "them; solve each person with heartpole.optimum.solve_people (heartpole optimum --people NAME)"
+        )
 
 
 def optimum_for(
@@ -262,8 +277,13 @@ def _cached(params: Params, cache_root: str) -> OptimumSolution | NotCoveredErro
         solution = OptimumSolution.load(directory)
         if solution.params == params and solution.grid == DEFAULT_GRID:
             return solution
-    except (FileNotFoundError, ValueError):
-        pass
+        damaged = f"{directory} holds another solution"
+    except FileNotFoundError:
+        damaged = None
+    except ValueError as error:
+        damaged = str(error)
+    if damaged is not None:  # said once per process: this function is cached
+        warnings.warn(f"the cached optimum cannot be used ({damaged}); solving it again", RuntimeWarning, stacklevel=2)
     try:
         solution = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params))
     except NotCoveredError as error:

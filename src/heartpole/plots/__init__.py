@@ -35,7 +35,13 @@ from heartpole.plots.curves import (
     productivity_figure,
 )
 from heartpole.plots.episode import START_DAY, EpisodeTrace, act, episode_days, episode_figure, trace_episode
-from heartpole.plots.learning import TRAINING_PANELS, find_learning_curves, read_learning_curve, training_figure
+from heartpole.plots.learning import (
+    TRAINING_PANELS,
+    find_learning_curves,
+    not_finite,
+    read_learning_curve,
+    training_figure,
+)
 from heartpole.plots.video import episode_frames, write_video
 
 __all__ = [
@@ -61,6 +67,7 @@ __all__ = [
     "heart_attack_risk_figure",
     "new_figure",
     "productivity_figure",
+    "not_finite",
     "read_learning_curve",
     "require_matplotlib",
     "require_video_writer",

@@ -10,7 +10,7 @@ import numpy as np
 
 from heartpole import model
 from heartpole.plots.canvas import ACTION_COLORS, ATTACK_COLOR, CURVE_COLOR, EXTRA_COLORS, SLEEP_SHADE, new_figure
-from heartpole.policies import Policy
+from heartpole.policies import Policy, quiet_version_warnings
 from heartpole.render import EPISODE_START_MINUTES, landmarks
 
 if TYPE_CHECKING:
@@ -71,7 +71,8 @@ def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = No
 
 def trace_episode(policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any) -> EpisodeTrace:
     """Run one episode of ``env_id`` with ``policy`` from ``reset(seed=seed)`` and record it."""
-    env = gym.make(env_id, **env_kwargs)
+    with quiet_version_warnings():  # drawing v0 is deliberate
+        env = gym.make(env_id, **env_kwargs)
     core = cast("HeartPole", env.unwrapped)
     observation, _ = env.reset(seed=seed)
     actions: list[int]

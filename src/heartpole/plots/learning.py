@@ -38,6 +38,21 @@ def read_learning_curve(path: str | Path) -> dict[str, np.ndarray]:
     return {c: values[order] for c, values in table.items()}
 
 
+def not_finite(curve: dict[str, np.ndarray]) -> list[str]:
+    """What a learning curve holds that cannot be drawn: per column, how many values are NaN or infinite (a CSV's
+    ``1e400`` reads as infinity). A plot leaves those points out without a word, so say it.
+
+    >>> not_finite({"timesteps": np.array([1.0, 2.0]), "score": np.array([np.nan, np.inf])})
+    ['score: 2 of 2 values NaN or infinite']
+    """
+    said = []
+    for column, values in curve.items():
+        bad = int(np.count_nonzero(~np.isfinite(values)))
+        if bad:
+            said.append(f"{column}: {bad} of {len(values)} values NaN or infinite")
+    return said
+
+
 def find_learning_curves(folder: str | Path) -> dict[str, Path]:
     """The learning curves of a ``heartpole train --out`` folder: one per ``seed_<s>`` subfolder, or the single one.
 

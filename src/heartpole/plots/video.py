@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import errno
+import os
+import re
+import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -11,7 +15,7 @@ import numpy as np
 
 from heartpole.plots.canvas import VIDEO_SUFFIXES
 from heartpole.plots.episode import act
-from heartpole.policies import Policy
+from heartpole.policies import Policy, quiet_version_warnings
 
 if TYPE_CHECKING:
     from heartpole.env import HeartPole
@@ -21,7 +25,8 @@ def episode_frames(
     policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any
 ) -> Iterator[np.ndarray]:
     """The ``rgb_array`` frames of one episode: the first state after reset, then one frame per step."""
-    env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
+    with quiet_version_warnings():  # recording v0 is deliberate
+        env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
     try:
         observation, _ = env.reset(seed=seed)
         yield cast(np.ndarray, env.render())  # render_mode="rgb_array"
@@ -39,7 +44,8 @@ def episode_frames(
 def write_video(frames: Iterable[np.ndarray], path: str | Path, fps: float = 8.0) -> int:
     """Write RGB frames to ``path`` (``.mp4`` through imageio-ffmpeg, ``.gif`` through Pillow); return the count.
 
-    Frames are streamed: an MP4 of a long episode never holds all its frames in memory.
+    Frames are streamed: an MP4 of a long episode never holds all its frames in memory. An MP4 is read back
+    ([`check_mp4`][heartpole.plots.video.check_mp4]): a video ffmpeg failed to finish raises ``OSError``.
     """
     suffix = Path(path).suffix.lower()
     if suffix not in VIDEO_SUFFIXES:
@@ -57,7 +63,35 @@ def _write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> in
         for frame in frames:
             writer.append_data(frame)  # type: ignore[attr-defined]  # typed as v3's base; v2's writers have it
             count += 1
+    check_mp4(path, count)
     return count
+
+
+def check_mp4(path: str | Path, count: int) -> None:
+    """Check that ffmpeg wrote a whole MP4 of ``count`` frames at ``path``: its container reads back and holds
+    them all (read without decoding, so it takes a moment).
+
+    imageio does not look at ffmpeg's exit status: a full disk (``Error writing trailer: No space left on
+    device``) left a file no player can open, reported as written.
+
+    Raises:
+        OSError: naming ``path``: ``ENOSPC`` when its disk is full, else ``EIO``, with ffmpeg's last words.
+    """
+    import subprocess
+
+    import imageio_ffmpeg
+
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-hide_banner", "-i", str(path)]
+    command += ["-map", "0:v:0", "-c", "copy", "-f", "null", "-"]
+    run = subprocess.run(command, capture_output=True, text=True, errors="replace", check=False)
+    found = re.findall(r"frame=\s*(\d+)", run.stderr)
+    if run.returncode == 0 and found and int(found[-1]) == count:
+        return
+    last = next((line.strip() for line in reversed(run.stderr.splitlines()) if line.strip()), "no output")
+    said = f"{int(found[-1])} of {count} frames readable" if run.returncode == 0 and found else f"ffmpeg: {last}"
+    if shutil.disk_usage(Path(path).parent).free == 0:
+        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (the video is incomplete: {said})", str(path))
+    raise OSError(errno.EIO, f"ffmpeg did not write a whole video ({said})", str(path))
 
 
 def _write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> int:

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from heartpole import files
+from heartpole import files, paths
 from heartpole.policies import SIDECAR_NAME
 from heartpole.records import SUMMARY_FILE
 
@@ -25,6 +25,8 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
     Raises:
         FileExistsError: ``out`` is a file, or a non-empty folder without ``force``.
         PermissionError: ``force`` on a folder that ``heartpole train`` did not write.
+        OSError: ``out`` cannot be written (a read-only file system, no permission, a mount point: see
+            [`heartpole.paths.check_writable`][heartpole.paths.check_writable]).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -37,6 +39,10 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
                 f"--out {out} was not written by 'heartpole train' (no {SIDECAR_NAME} or {SUMMARY_FILE}); "
                 "refusing to replace it even with --force"
             )
+    try:
+        paths.check_writable(out)
+    except OSError as error:
+        raise OSError(f"cannot write --out {paths.describe_error(error)}") from None
     return out
 
 

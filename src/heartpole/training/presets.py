@@ -20,6 +20,7 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
 from heartpole.records import env_solved_bar as env_solved_bar  # the bars every backend's summary reports
 from heartpole.records import meets_bar as meets_bar
 from heartpole.solved import V0_HEART_ATTACKS_AT_MOST, V0_SCORE_AT_LEAST
+from heartpole.training.checks import check_config, check_net_arch
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
 
 SOLVED_HEART_ATTACKS = V0_HEART_ATTACKS_AT_MOST
@@ -78,8 +79,7 @@ class TrainConfig:
         for name in ("timesteps", "n_envs"):
             check_integer(name, getattr(self, name), 1)
         check_integer("seed", self.seed, 0)
-        if not self.net_arch or any(int(n) < 1 for n in self.net_arch):
-            raise ValueError(f"net_arch must list positive layer sizes, got {self.net_arch!r}")
+        check_net_arch(self.net_arch)
 
     @property
     def gamma(self) -> float:
@@ -98,20 +98,29 @@ class TrainConfig:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> TrainConfig:
         """The inverse of [`to_dict`][heartpole.training.presets.TrainConfig.to_dict] (``reward["description"]`` is
-        ignored); unknown keys raise ValueError."""
+        ignored); unknown keys and values of the wrong kind raise ValueError naming the key."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"unknown configuration keys {unknown}; known: {', '.join(sorted(known))}")
         values = dict(data)
-        if "reward" in values:
-            reward = {k: v for k, v in dict(values["reward"]).items() if k != "description"}
-            values["reward"] = TrainingReward(**reward)
-        if "net_arch" in values:
-            values["net_arch"] = tuple(int(n) for n in values["net_arch"])
-        for key in ("hyperparameters", "env_kwargs"):
+        for key in ("reward", "hyperparameters", "env_kwargs"):
+            if key in values and not isinstance(values[key], Mapping):
+                raise ValueError(f"{key} must be an object (a JSON {{...}}), got {values[key]!r}")
             if key in values:
                 values[key] = dict(values[key])
+        if "reward" in values:
+            reward = {k: v for k, v in values["reward"].items() if k != "description"}
+            accepted = [f.name for f in fields(TrainingReward)]
+            unknown = sorted(set(reward) - set(accepted))
+            if unknown:
+                raise ValueError(f"reward has no {', '.join(map(repr, unknown))}; it takes {accepted}")
+            try:
+                values["reward"] = TrainingReward(**reward)
+            except ValueError as error:
+                raise ValueError(f"reward.{error}") from None
+        if "net_arch" in values:
+            values["net_arch"] = check_net_arch(values["net_arch"])
         return cls(**values)
 
 
@@ -284,8 +293,12 @@ def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
     """The [`TrainConfig`][heartpole.training.presets.TrainConfig] of a preset file written by
     [`save_preset`][heartpole.training.presets.save_preset] (seed 0).
 
+    Every key is checked ([`heartpole.training.checks.check_config`][heartpole.training.checks.check_config]) before
+    the configuration is returned.
+
     Raises:
-        ValueError: the file is not JSON, not a preset file, or holds a bad configuration.
+        ValueError: the file is not JSON, not a preset file, or holds a bad configuration: the message names the
+            file, the key, its value and what is accepted.
         OSError: the file cannot be read.
     """
     try:
@@ -295,6 +308,8 @@ def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
     if not isinstance(data, dict) or data.get("format") != PRESET_FORMAT or not isinstance(data.get("config"), dict):
         raise ValueError(f"{path} is not a preset file (expected a JSON object with format {PRESET_FORMAT!r})")
     try:
-        return TrainConfig.from_dict(data["config"])
-    except TypeError as error:
+        config = TrainConfig.from_dict(data["config"])
+        check_config(config)
+    except (TypeError, ValueError) as error:
         raise ValueError(f"preset file {path}: {error}") from None
+    return config
