@@ -37,9 +37,10 @@ from heartpole import files
 from heartpole.registry import one_line
 
 TRUST_HINT = (
-    "nothing from it was run. Load it only if you trust whoever made it: pass --trust-pickles to the command "
-    "(trust_pickles=True in Python's heartpole.load_policy)"
+    "nothing from it was run. Load it only if you trust whoever made it: pass --trust-pickles (heartpole evaluate, "
+    "compare, baselines, plot episode, record) or trust_pickles=True (heartpole.load_policy)"
 )
+"""The end of every refusal: that nothing ran, and how to opt in to unpickling."""
 STATISTICS_FORMAT = "heartpole-vecnormalize/1"
 """The ``format`` of ``vecnormalize.json``, the observation statistics in plain JSON."""
 
@@ -75,26 +76,31 @@ class ObservationStatistics:
 def save_statistics(normalizer: Any, path: str | Path) -> Path:
     """Write a ``VecNormalize``'s statistics to ``path`` as plain JSON (`STATISTICS_FORMAT`): the
     observations' mean, variance and count, ``epsilon``, ``clip_obs`` and ``norm_obs``, and the returns'
-    statistics with ``norm_reward``, ``clip_reward`` and ``gamma`` (floats round-trip exactly)."""
+    statistics with ``norm_reward``, ``clip_reward`` and ``gamma`` (floats round-trip exactly).
+
+    Raises:
+        ValueError: a statistic that is not finite (JSON has no NaN or infinity; nor does a usable run).
+    """
     obs, ret = normalizer.obs_rms, normalizer.ret_rms
-    return files.write_json(
-        path,
-        {
-            "format": STATISTICS_FORMAT,
-            "norm_obs": bool(normalizer.norm_obs),
-            "clip_obs": float(normalizer.clip_obs),
-            "epsilon": float(normalizer.epsilon),
-            "obs_mean": np.asarray(obs.mean, dtype=np.float64).tolist(),
-            "obs_var": np.asarray(obs.var, dtype=np.float64).tolist(),
-            "obs_count": float(obs.count),
-            "norm_reward": bool(normalizer.norm_reward),
-            "clip_reward": float(normalizer.clip_reward),
-            "gamma": float(normalizer.gamma),
-            "ret_mean": float(np.asarray(ret.mean, dtype=np.float64).reshape(-1)[0]),
-            "ret_var": float(np.asarray(ret.var, dtype=np.float64).reshape(-1)[0]),
-            "ret_count": float(ret.count),
-        },
-    )
+    record = {
+        "format": STATISTICS_FORMAT,
+        "norm_obs": bool(normalizer.norm_obs),
+        "clip_obs": float(normalizer.clip_obs),
+        "epsilon": float(normalizer.epsilon),
+        "obs_mean": np.asarray(obs.mean, dtype=np.float64).tolist(),
+        "obs_var": np.asarray(obs.var, dtype=np.float64).tolist(),
+        "obs_count": float(obs.count),
+        "norm_reward": bool(normalizer.norm_reward),
+        "clip_reward": float(normalizer.clip_reward),
+        "gamma": float(normalizer.gamma),
+        "ret_mean": float(np.asarray(ret.mean, dtype=np.float64).reshape(-1)[0]),
+        "ret_var": float(np.asarray(ret.var, dtype=np.float64).reshape(-1)[0]),
+        "ret_count": float(ret.count),
+    }
+    for key, value in record.items():
+        if key != "format" and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+            raise ValueError(f"cannot save the observation statistics as {path}: {key} is not finite ({value})")
+    return files.write_json(path, record)
 
 
 def load_statistics(path: str | Path) -> ObservationStatistics:
