@@ -253,7 +253,10 @@ def _recorded_net_arch(path: Path) -> list[int] | None:
 
 def _warn_if_trained_normalized(path: Path) -> None:
     """Warn when the zip records the unnormalised observations SB3 keeps only under ``VecNormalize``
-    (``_last_original_obs``), since no statistics are applied."""
+    (``_last_original_obs``), since no statistics are applied (unless statistics lie beside it unrecorded:
+    `recorded_normalizer` has warned about those)."""
+    if any((path.parent / name).is_file() for name in (VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME)):
+        return
     try:
         trained_normalized = model_data(path).get("_last_original_obs") is not None
     except ValueError:
