@@ -249,3 +249,39 @@ def test_a_model_trained_without_vecnormalize_loads_without_that_warning(tmp_pat
         policy = load_policy(str(tmp_path / "m.zip"))
     expected, _ = model.predict(OBS, deterministic=True)
     np.testing.assert_array_equal(policy(OBS), expected)
+
+
+# ------------------------------------------------------------------------------------------------------
+# what the safe reader rebuilds, and what it leaves to trust_pickles
+
+
+def test_a_recorded_activation_function_is_rebuilt(tmp_path: Path) -> None:
+    import stable_baselines3 as sb3
+
+    kwargs = {"net_arch": [8, 8], "activation_fn": torch.nn.ReLU}
+    sb3.A2C("MlpPolicy", heartpole.HeartPole(), policy_kwargs=kwargs, seed=1).save(tmp_path / "m.zip")
+    policy = load_policy(str(tmp_path / "m.zip"))
+    assert isinstance(policy.model, SavedModel)
+    assert isinstance(policy.model.policy.mlp_extractor.policy_net[1], torch.nn.ReLU)
+    expected, _ = sb3.A2C.load(tmp_path / "m.zip").predict(OBS, deterministic=True)
+    np.testing.assert_array_equal(policy(OBS), expected)
+
+
+def test_a_model_the_safe_reader_cannot_rebuild_needs_trust_pickles(run: Path, tmp_path, capsys) -> None:
+    path = _copy(run, tmp_path / "custom")
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    data = json.loads(members["data"])
+    data["policy_class"]["__init__"] = "<function MyPolicy.__init__ at 0x0>"  # a policy class of one's own
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, raw in {**members, "data": json.dumps(data).encode()}.items():
+            archive.writestr(name, raw)
+    _sidecar(tmp_path / "custom", model_sha256=file_sha256(path))
+    with pytest.raises(UnsafeFileError, match=r"policy class \(.*MyPolicy.__init__\) is not the PPO MlpPolicy"):
+        load_policy(str(path))
+    trusted = load_policy(str(path), trust_pickles=True)  # SB3's own load, which unpickles
+    assert not isinstance(trusted.model, SavedModel)
+    np.testing.assert_array_equal(trusted(OBS), _trusted_the_old_way(path)(OBS))
+    assert main(["evaluate", "--policy", str(path), "--episodes", "2"]) == 2
+    assert "--trust-pickles" in capsys.readouterr().err
+    assert main(["evaluate", "--policy", str(path), "--episodes", "2", "--trust-pickles"]) == 0

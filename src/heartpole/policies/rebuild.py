@@ -151,8 +151,11 @@ def read_weights(path: Path, member: str = "policy.pth") -> dict[str, torch.Tens
 _ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU", "Sigmoid", "Softplus", "SELU", "Mish")
 _PLAIN_POLICY_KWARGS = frozenset({"net_arch", "ortho_init", "share_features_extractor", "normalize_images"})
 _IGNORED_POLICY_KWARGS = frozenset({"optimizer_class", "optimizer_kwargs", ":type:", ":serialized:"})
-_POLICY_MODULES = {"ppo": "stable_baselines3.common.policies", "a2c": "stable_baselines3.common.policies",
-                   "dqn": "stable_baselines3.dqn.policies"}  # fmt: skip
+# the MlpPolicy class of each algorithm, by module and the class that defines __init__ (the class's recorded
+# __dict__ names it: '<function ActorCriticPolicy.__init__ at ...>'; CnnPolicy and the like define their own)
+_POLICY_CLASSES = {"ppo": ("stable_baselines3.common.policies", "ActorCriticPolicy"),
+                   "a2c": ("stable_baselines3.common.policies", "ActorCriticPolicy"),
+                   "dqn": ("stable_baselines3.dqn.policies", "DQNPolicy")}  # fmt: skip
 
 
 @dataclass
@@ -183,11 +186,16 @@ def rebuild_model(path: Path, algo: str, data: Mapping[str, Any], net_arch: Sequ
     import gymnasium as gym
     import torch
 
-    module = data.get("policy_class", {}).get("__module__") if isinstance(data.get("policy_class"), dict) else None
-    if module != _POLICY_MODULES[algo]:
+    recorded = data.get("policy_class")
+    recorded = recorded if isinstance(recorded, dict) else {}
+    module, name = _POLICY_CLASSES[algo]
+    if recorded.get("__module__") != module or not str(recorded.get("__init__")).startswith(
+        f"<function {name}.__init__"
+    ):
+        described = f"{recorded.get('__module__')}, {str(recorded.get('__init__', ''))[10:].split(' ')[0]}"
         raise UnsafeFileError(
-            f"{path}: its policy class (from {module or 'an unrecorded module'}) is not the {algo.upper()} MlpPolicy "
-            f"that HeartPole rebuilds without unpickling; {TRUST_HINT}"
+            f"{path}: its policy class ({described}) is not the {algo.upper()} MlpPolicy ({module}.{name}) that "
+            f"HeartPole rebuilds without unpickling; {TRUST_HINT}"
         )
     kwargs = _policy_kwargs(path, data.get("policy_kwargs"))
     if net_arch is not None:
