@@ -285,3 +285,24 @@ def test_a_model_the_safe_reader_cannot_rebuild_needs_trust_pickles(run: Path, t
     assert main(["evaluate", "--policy", str(path), "--episodes", "2"]) == 2
     assert "--trust-pickles" in capsys.readouterr().err
     assert main(["evaluate", "--policy", str(path), "--episodes", "2", "--trust-pickles"]) == 0
+
+
+@pytest.mark.parametrize("protocol", range(pickle.HIGHEST_PROTOCOL + 1))
+def test_the_restricted_unpickler_reads_every_protocol_and_refuses_hidden_calls(tmp_path: Path, protocol) -> None:
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    normalizer = VecNormalize(DummyVecEnv([heartpole.HeartPole]), clip_obs=3.0)
+    normalizer.obs_rms.mean = np.arange(6.0)
+    (tmp_path / "v.pkl").write_bytes(pickle.dumps(normalizer, protocol))
+    np.testing.assert_array_equal(unpickle_statistics(tmp_path / "v.pkl").mean, normalizer.obs_rms.mean)
+    marker = tmp_path / "PWNED"
+    normalizer.ret_rms.extra = Touch(marker)  # a call hidden in an otherwise genuine file
+    (tmp_path / "e.pkl").write_bytes(pickle.dumps(normalizer, protocol))
+    with pytest.raises(UnsafeFileError, match=r"e.pkl: .*would call posix.system"):
+        unpickle_statistics(tmp_path / "e.pkl")
+    del normalizer.ret_rms.extra
+    normalizer.obs_rms.mean = np.array([Touch(marker)] * 6, dtype=object)  # objects inside an array
+    (tmp_path / "o.pkl").write_bytes(pickle.dumps(normalizer, protocol))
+    with pytest.raises(ValueError, match=r"o.pkl: not a VecNormalize file"):
+        unpickle_statistics(tmp_path / "o.pkl")
+    assert not marker.exists()

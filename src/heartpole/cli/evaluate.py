@@ -38,7 +38,7 @@ ORDER = 10
 
 POLICY_HELP = (
     "a built-in policy (random, nothing, coffee, reference, expert, optimal; oracle with --people) or the path "
-    "of a model .zip saved by 'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
+    "of a model .zip saved by 'heartpole train' (with the statistics its heartpole.json records, if any)"
 )
 PROTOCOL = (
     "Every policy runs the same episodes: same seed, same chunks of side-by-side envs, so the same random "

@@ -191,6 +191,10 @@ _KEPT_AS_ATTRIBUTES = (_VECNORMALIZE, _RUNNING_MEAN_STD)
 _INERT_PREFIXES = ("gymnasium.spaces.", "gym.spaces.", "numpy.random.")
 
 
+# builtin types a pickle may construct: plain values, no callables (protocols 0 to 2 name them as globals)
+_PLAIN_TYPES = (object, bytes, bytearray, set, frozenset, list, tuple, dict, complex, int, float, bool, str, slice)
+
+
 class _Pickled:
     """An object of a pickled class, kept as its attributes only: constructing it runs nothing."""
 
@@ -216,6 +220,28 @@ def _plain_dtype(*args: object) -> np.dtype[Any]:
     return np.dtype(*args)  # type: ignore[call-overload]  # (name, align, copy) as NumPy pickles it
 
 
+def _reconstructor(cls: object, base: object, state: object) -> _Pickled:
+    """``copyreg._reconstructor`` for the classes kept as attributes only (`_Pickled`), and nothing else."""
+    if not (isinstance(cls, type) and issubclass(cls, _Pickled)) or base is not object:
+        raise pickle.UnpicklingError(f"copyreg._reconstructor of {cls!r} from {base!r}")
+    return cls()
+
+
+def _from_buffer(buffer: object, dtype: object, shape: object, order: object) -> np.ndarray:
+    """NumPy's ``_frombuffer`` (protocol 5's arrays) for arrays of numbers only."""
+    if not isinstance(dtype, np.dtype) or dtype.kind not in "biufc" or not isinstance(buffer, (bytes, bytearray)):
+        raise pickle.UnpicklingError(f"an array of {dtype!r} from {type(buffer).__name__}")
+    array = np.frombuffer(buffer, dtype).copy()
+    return array.reshape(shape, order="F" if order == "F" else "C")
+
+
+def _latin1(text: object, encoding: object = "utf-8") -> bytes:
+    """``_codecs.encode`` as pickle's protocols 0 to 2 use it for bytes: a string in latin-1, nothing else."""
+    if not isinstance(text, str) or encoding != "latin1":
+        raise pickle.UnpicklingError(f"_codecs.encode of {type(text).__name__} as {encoding!r}")
+    return text.encode("latin1")
+
+
 class _StatisticsUnpickler(pickle.Unpickler):
     """Builds NumPy arrays and numbers; keeps the classes a ``VecNormalize`` file holds as `_Pickled`
     attributes; refuses every other global (a function the file could call)."""
@@ -225,8 +251,14 @@ class _StatisticsUnpickler(pickle.Unpickler):
     _NUMPY: dict[str, Any] = {
         "numpy.ndarray": np.ndarray,
         "numpy.dtype": _plain_dtype,
+        # how protocols 0 to 2 rebuild an object (named as Python 2 named them, as pickle writes them there)
+        "copyreg._reconstructor": _reconstructor,
+        "copy_reg._reconstructor": _reconstructor,
+        **{f"{module}.{t.__name__}": t for module in ("builtins", "__builtin__") for t in _PLAIN_TYPES},
+        "_codecs.encode": _latin1,  # how protocols 0 to 2 write bytes
         "multiarray._reconstruct": np.zeros(0).__reduce__()[0],
         "multiarray.scalar": np.float64(0).__reduce__()[0],
+        "numeric._frombuffer": _from_buffer,  # protocol 5's arrays
     }
 
     def __init__(self, handle: Any, path: Path) -> None:
@@ -237,8 +269,8 @@ class _StatisticsUnpickler(pickle.Unpickler):
     def find_class(self, module: str, name: str) -> Any:
         """The object the pickle names, or `UnsafeFileError` for anything that could run code."""
         full = f"{module}.{name}"
-        if module in ("numpy.core.multiarray", "numpy._core.multiarray"):
-            full = f"multiarray.{name}"
+        if module in ("numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric", "numpy._core.numeric"):
+            full = f"{module.rpartition('.')[2]}.{name}"
         if full in self._NUMPY:
             return self._NUMPY[full]
         full = f"{module}.{name}"
