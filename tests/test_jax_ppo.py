@@ -125,12 +125,18 @@ def test_smoke_run_writes_what_heartpole_evaluate_reads(tmp_path, capsys) -> Non
     assert json.loads((tmp_path / "summary.json").read_text())["backend"] == "jax"
     for seed in (0, 1):
         folder = tmp_path / f"seed_{seed}"
-        for name in ("model.zip", "vecnormalize.pkl", "heartpole.json", "learning_curve.csv", "evaluation.json"):
+        for name in ("model.zip", "vecnormalize.pkl", "vecnormalize.json", "heartpole.json", "learning_curve.csv",
+                     "evaluation.json"):  # fmt: skip
             assert (folder / name).is_file(), name
         curve = plots.read_learning_curve(folder / "learning_curve.csv")  # the one reader, the plots'
         assert len(curve["timesteps"]) == 4096 // (8 * 64) and curve["timesteps"][0] == 8 * 64
         policy = load_policy(str(folder / "model.zip"), "HeartPole-v0", env_kwargs={"max_steps": 64})
         assert policy(np.zeros((3, 6), np.float32)).shape == (3,)
+        assert policy.normalizer_path == folder / "vecnormalize.json"  # read as plain JSON, not unpickled
+    (tmp_path / "alone").mkdir()  # B14: copied without heartpole.json and the statistics, it is not used silently
+    (tmp_path / "alone" / "model.zip").write_bytes((tmp_path / "seed_0" / "model.zip").read_bytes())
+    with pytest.warns(UserWarning, match="trained on VecNormalize-wrapped envs"):
+        load_policy(str(tmp_path / "alone" / "model.zip"), "HeartPole-v0", env_kwargs={"max_steps": 64})
     code = main(["evaluate", "--policy", str(tmp_path / "seed_0" / "model.zip"), "--episodes", "10"])
     assert code == 0 and "seed_0" in capsys.readouterr().out
     # evaluation.json (every seed evaluated on the device in one call) is heartpole evaluate's of the saved model
@@ -151,7 +157,8 @@ def test_exported_model_acts_as_the_jax_network(tmp_path) -> None:
     settings = ppo.PPOSettings.from_config(config)
     runner, _ = jax.jit(ppo.make_train(env, env.default_params, settings))(jax.random.key(3))
     export.export_sb3(config, runner, tmp_path)
-    policy = load_policy(str(tmp_path / "model.zip"), "HeartPole-v0")
+    with pytest.warns(UserWarning, match=r"ignoring .*vecnormalize.json"):  # no heartpole.json records them
+        policy = load_policy(str(tmp_path / "model.zip"), "HeartPole-v0")
     obs = np.random.default_rng(0).uniform(0, 5, size=(200, 6)).astype(np.float32)
     seen = policy.normalize(obs)
     logits, _ = ppo.policy_and_value(runner.network, jnp.asarray(seen))

@@ -251,7 +251,7 @@ def test_train_run_writes_files_that_load_and_act(tmp_path: Path, algo: str) -> 
     assert sidecar["model"] == "model.zip" and sidecar["model_sha256"] == file_sha256(folder / "model.zip")
     assert sidecar["vecnormalize"] == "vecnormalize.pkl"
     assert sidecar["vecnormalize_sha256"] == file_sha256(folder / "vecnormalize.pkl")
-    assert load_policy(str(folder / "model.zip")).normalizer_path == folder / "vecnormalize.pkl"
+    assert load_policy(str(folder / "model.zip")).normalizer_path == folder / "vecnormalize.json"
     assert (sidecar["algo"], sidecar["env_id"], sidecar["seed"], sidecar["timesteps"]) == (
         algo,
         "HeartPole-v0",

@@ -49,6 +49,17 @@ def not_empty(option: str, value: str | None) -> str | None:
     return value
 
 
+TRUST_PICKLES_HELP = (
+    "load a model file by unpickling it (Stable-Baselines3's load, pickle) where HeartPole's safe readers refuse "
+    "it; unpickling can run any code the file's author chose: only for files you trust"
+)
+
+
+def add_trust_pickles(parser: argparse.ArgumentParser) -> None:
+    """Add ``--trust-pickles`` (``args.trust_pickles``) to a command that loads models."""
+    parser.add_argument("--trust-pickles", action="store_true", help=TRUST_PICKLES_HELP)
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer >= 1."""
     try:

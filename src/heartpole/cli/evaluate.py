@@ -21,6 +21,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    add_trust_pickles,
     error_line,
     format_table,
     markdown_table,
@@ -39,7 +40,7 @@ ORDER = 10
 
 POLICY_HELP = (
     "a built-in policy (random, nothing, coffee, reference, expert, optimal; oracle with --people) or the path "
-    "of a model .zip saved by 'heartpole train' (with its vecnormalize.pkl, if any, beside it)"
+    "of a model .zip saved by 'heartpole train' (with the statistics its heartpole.json records, if any)"
 )
 PROTOCOL = (
     "Every policy runs the same episodes: same seed, same chunks of side-by-side envs, so the same random "
@@ -113,6 +114,7 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
         help="episodes run side by side (default: all of them, up to 10000)",
     )
     add_people_arguments(parser, "reports the oracle regret")
+    add_trust_pickles(parser)
 
 
 def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -186,7 +188,7 @@ def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
     builds it with the run's seed), or the loaded model (the user hears which statistics it applies)."""
     from heartpole.policies import BUILTIN_POLICIES, load_policy
 
-    policy = _library(lambda: load_policy(spec, args.env, env_kwargs=args.env_kwargs))
+    policy = _library(lambda: load_policy(spec, args.env, env_kwargs=args.env_kwargs, trust_pickles=args.trust_pickles))
     if spec in BUILTIN_POLICIES:
         return spec
     tell_normalization(policy)

@@ -20,6 +20,7 @@ from heartpole import files, plots
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
+    add_trust_pickles,
     output_file,
     output_files,
     positive_int,
@@ -124,6 +125,7 @@ def _add_episode_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (0)")
     parser.add_argument("--steps", type=positive_int, default=None, help="decisions in the episode (the env's, 1000)")
     parser.add_argument("--env", default=DEFAULT_ENV, metavar="ID", help=f"HeartPole env id ({DEFAULT_ENV})")
+    add_trust_pickles(parser)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -144,7 +146,9 @@ def _policy(args: argparse.Namespace) -> Policy:
     from heartpole.policies import load_policy
 
     try:
-        policy = load_policy(args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed)
+        policy = load_policy(
+            args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed, trust_pickles=args.trust_pickles
+        )
     except (ValueError, FileNotFoundError) as error:
         raise CommandError(str(error)) from None
     tell_normalization(policy)

@@ -46,7 +46,7 @@ RAY_EXTRA = "pip install 'heartpole[ray]'"
 ABOVE_FLOOR, SHARE_OF_BEST = SOLVED_ATTACKS_ABOVE_FLOOR - 1, SOLVED_SHARE_OF_BEST_SCORE
 DESCRIPTION = f"""\
 Train an agent on HeartPole with Stable-Baselines3 on the native vector env, with a progress bar, and
-write to --out: model.zip, vecnormalize.pkl (observation/reward normalisation, when used),
+write to --out: model.zip, vecnormalize.pkl and .json (observation/reward normalisation, when used),
 heartpole.json (the configuration), learning_curve.csv (timesteps, mean_return, heart_attacks, score)
 and evaluation.json (2,000 evaluation episodes of the saved model). With --seeds, one folder per seed
 (seed_<s>/) and summary.json with the interquartile mean across seeds and its bootstrap interval.
@@ -314,7 +314,7 @@ def run_train(args: argparse.Namespace) -> int:
     elif seeds is None:
         print(format_run(result))
         print(f"wrote {out}/: model.zip, heartpole.json, learning_curve.csv, evaluation.json"
-              + (", vecnormalize.pkl" if (out / VECNORMALIZE_NAME).exists() else ""))  # fmt: skip
+              + (", vecnormalize.pkl, vecnormalize.json" if (out / VECNORMALIZE_NAME).exists() else ""))  # fmt: skip
     else:
         print(format_summary(result))
         print(f"wrote {out}/seed_<s>/ for seeds {args.seeds} and {out}/{training.SUMMARY_FILE}")

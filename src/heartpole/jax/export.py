@@ -26,7 +26,9 @@ import numpy as np
 from heartpole import files, records
 from heartpole.jax.evaluation import evaluate_batch
 from heartpole.jax.ppo import PPOSettings, Runner, RunningStats, Trained, policy_and_value, train_compiled
-from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_NAME
+from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME
+from heartpole.policies.saved import file_sha256
+from heartpole.policies.untrusted import save_statistics
 from heartpole.registry import quiet_version_warnings
 
 if TYPE_CHECKING:
@@ -53,7 +55,8 @@ def sb3_ppo(config: Any) -> tuple[BaseAlgorithm, VecEnv]:
 
 class SB3Writer:
     """Writes seeds' trained networks and statistics as ``heartpole train`` saves SB3's runs: ``model.zip`` (an
-    SB3 PPO ``MlpPolicy`` with these weights) and ``vecnormalize.pkl`` (the running statistics). One SB3 model
+    SB3 PPO ``MlpPolicy`` with these weights), ``vecnormalize.pkl`` and ``vecnormalize.json`` (the running
+    statistics, pickled for SB3 and as plain JSON for loading without unpickling). One SB3 model
     and env serve every seed (building them is most of the cost), so a seed's files take a few milliseconds of
     copying and writing. Use it as a context manager: it closes the env."""
 
@@ -85,6 +88,11 @@ class SB3Writer:
         model.policy.load_state_dict(state)
         # sb3_ppo makes a PPO (typed as SB3's BaseAlgorithm, which has no n_steps)
         model.num_timesteps = PPOSettings.from_config(self.config).num_updates * self.config.n_envs * model.n_steps  # type: ignore[attr-defined]
+        if isinstance(venv, VecNormalize):
+            # what SB3 records of a model trained under VecNormalize (the raw last observations): loading reads its
+            # presence as "expects normalised observations" and warns when no statistics come with the model
+            shape = (int(self.config.n_envs), *(venv.observation_space.shape or ()))
+            model._last_original_obs = np.zeros(shape, dtype=np.float32)
         model.save(folder / MODEL_NAME)
         if isinstance(venv, VecNormalize):
             obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
@@ -94,6 +102,7 @@ class SB3Writer:
                 stats.count = float(ours.count)
             venv.training = False
             venv.save(str(folder / VECNORMALIZE_NAME))
+            save_statistics(venv, folder / VECNORMALIZE_JSON_NAME)
 
 
 def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
@@ -149,7 +158,7 @@ def _write_seed(
     sidecar = {
         **records.run_description(config),
         "backend": "jax",
-        "vecnormalize": VECNORMALIZE_NAME if config.normalize_observations or config.normalize_rewards else None,
+        **_statistics_record(folder),
         **{key: round(value, 2) for key, value in timings.items()},
         "versions": records.versions(jax=jax.__version__),
     }
@@ -160,6 +169,17 @@ def _write_seed(
     return records.run_summary(config, evaluation, timings["train_seconds"], wall) | {
         "compile_seconds": round(timings["compile_seconds"], 2)
     }
+
+
+def _statistics_record(folder: Path) -> dict[str, str | None]:
+    """``heartpole.json``'s record of the statistics saved in ``folder`` (``None`` where there are none), each
+    file with its SHA-256, as ``heartpole train`` records them."""
+    record: dict[str, str | None] = {}
+    for key, name in (("vecnormalize", VECNORMALIZE_NAME), ("vecnormalize_json", VECNORMALIZE_JSON_NAME)):
+        saved = (folder / name).is_file()
+        record[key] = name if saved else None
+        record[f"{key}_sha256"] = file_sha256(folder / name) if saved else None
+    return record
 
 
 def _warm_up(env_id: str, env_kwargs: dict[str, Any]) -> threading.Thread:

@@ -40,7 +40,8 @@ by ``heartpole train`` (or by the JAX trainer, which saves the same files) into 
 The package's modules: ``common`` (the types, the file names of a training run,
 [`act_batch`][heartpole.policies.act_batch]), ``builtins`` (the built-in policies), ``oracle`` (the ``oracle``
 policy), ``saved`` (models saved by ``heartpole train``, loaded with Stable-Baselines3, which is imported only when a
-model is loaded). Everything is importable from here.
+model is loaded), ``untrusted`` (reading those files without running code from them). Everything is importable from
+here.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ from heartpole.policies.common import (
     MODEL_NAME,
     SB3_ALGORITHMS,
     SIDECAR_NAME,
+    VECNORMALIZE_JSON_NAME,
     VECNORMALIZE_NAME,
     Actions,
     DecisionsLeft,
@@ -96,6 +98,7 @@ __all__ = [
     "MODEL_NAME",
     "SIDECAR_NAME",
     "VECNORMALIZE_NAME",
+    "VECNORMALIZE_JSON_NAME",
     "CURVE_NAME",
     "CURVE_COLUMNS",
     "observation_batch",
@@ -127,6 +130,7 @@ def load_policy(
     *,
     env_kwargs: Mapping[str, Any] | None = None,
     rng: np.random.Generator | int | None = None,
+    trust_pickles: bool = False,
 ) -> Policy:
     """A built-in policy by name, or a Stable-Baselines3 model (a ``.zip`` saved by ``heartpole train``).
 
@@ -134,17 +138,26 @@ def load_policy(
     else from the policy class recorded in the zip. Observations are normalised only with the
     ``VecNormalize`` statistics that ``heartpole.json`` records as saved with this model (see
     `recorded_normalizer`); the returned policy's
-    ``normalizer_path`` names them. The model then acts deterministically. Model files are pickles: load
-    only files you trust.
+    ``normalizer_path`` names them. The model then acts deterministically.
+
+    Loading runs no code from the files: the network is rebuilt from its recorded architecture, its weights
+    read by PyTorch's weights-only reader and the statistics from plain JSON or a restricted unpickler (see
+    [`heartpole.policies.untrusted`][heartpole.policies.untrusted]). A file those cannot read is refused
+    with [`UnsafeFileError`][heartpole.policies.untrusted.UnsafeFileError] unless ``trust_pickles``.
 
     Args:
         spec: a name in [`BUILTIN_POLICIES`][heartpole.policies.BUILTIN_POLICIES] or a path to a model ``.zip``.
         env_id: the env the policy will act in (its action names and spaces).
         env_kwargs: keyword arguments of that env (a variant's parameters).
         rng: generator or seed of the ``random`` policy.
+        trust_pickles: read a model file by unpickling (Stable-Baselines3's ``load``, ``pickle``) where the
+            safe readers refuse it. Unpickling can run any code the file's author chose: only for files you
+            trust.
 
     Raises:
-        ValueError: unknown name, or a file that is not a usable model for this env.
+        ValueError: unknown name, or a file that is not a usable model for this env
+            ([`UnsafeFileError`][heartpole.policies.untrusted.UnsafeFileError], a subclass: one that only
+            unpickling could read).
         FileNotFoundError: a path that does not exist.
 
     A policy maps a batch of observations to a batch of action indices:
@@ -170,7 +183,7 @@ def load_policy(
         )
     from heartpole.policies.saved import load_model_policy  # imports Stable-Baselines3 when it loads
 
-    return load_model_policy(spec, dynamics, _observation_shape(env_id, env_kwargs))
+    return load_model_policy(spec, dynamics, _observation_shape(env_id, env_kwargs), trust_pickles=trust_pickles)
 
 
 def _observation_shape(env_id: str, env_kwargs: Mapping[str, Any] | None) -> tuple[int, ...]:

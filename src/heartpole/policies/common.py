@@ -39,6 +39,7 @@ SB3_ALGORITHMS = ("ppo", "a2c", "dqn")
 MODEL_NAME = "model.zip"
 SIDECAR_NAME = "heartpole.json"
 VECNORMALIZE_NAME = "vecnormalize.pkl"
+VECNORMALIZE_JSON_NAME = "vecnormalize.json"  # the same statistics as plain JSON, read without unpickling
 CURVE_NAME = "learning_curve.csv"
 CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 """The columns of a learning curve: after each evaluation, its timestep and the mean return, heart

@@ -1,6 +1,13 @@
 """Stable-Baselines3 models saved by ``heartpole train`` (or the JAX trainer) as policies: loading, the
 observation statistics recorded with them, and which algorithm saved them. Stable-Baselines3 is imported only
-when a model is loaded, and no training code is needed. Model files are pickles: load only files you trust."""
+when a model is loaded, and no training code is needed.
+
+Loading runs no code from the files: the network is rebuilt from its recorded architecture and its weights
+read with PyTorch's weights-only reader ([`heartpole.policies.rebuild`][heartpole.policies.rebuild]), the
+statistics come from plain JSON or a restricted unpickler
+([`heartpole.policies.untrusted`][heartpole.policies.untrusted]). A file that could be read only by
+unpickling it is refused unless ``trust_pickles=True``, which falls back to Stable-Baselines3's ``load`` and
+``pickle`` for what the safe readers cannot read."""
 
 from __future__ import annotations
 
@@ -9,7 +16,6 @@ import json
 import pickle
 import sys
 import warnings
-import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,11 +31,14 @@ if TYPE_CHECKING:
 from heartpole.policies.common import (
     SB3_ALGORITHMS,
     SIDECAR_NAME,
+    VECNORMALIZE_JSON_NAME,
     VECNORMALIZE_NAME,
     Predictor,
     default_dynamics,
     observation_batch,
 )
+from heartpole.policies.rebuild import SavedModel, check_data_pickles, model_data, rebuild_model
+from heartpole.policies.untrusted import UnsafeFileError, load_statistics, unpickle_statistics
 from heartpole.registry import one_line
 
 
@@ -148,15 +157,24 @@ def _normalization(normalizer: Normalizer | None) -> tuple[np.ndarray, np.ndarra
 
 
 def load_model_policy(
-    path: str | Path, dynamics: Dynamics | None = None, obs_shape: tuple[int, ...] | None = None
+    path: str | Path,
+    dynamics: Dynamics | None = None,
+    obs_shape: tuple[int, ...] | None = None,
+    *,
+    trust_pickles: bool = False,
 ) -> ModelPolicy:
-    """The SB3 model saved at ``path`` (with ``vecnormalize.pkl`` beside it, if any) as a policy.
+    """The SB3 model saved at ``path`` (with the statistics its ``heartpole.json`` records, if any) as a policy,
+    read without running code from the files (`load_model`, `load_normalizer`).
 
     ``obs_shape`` is the env's observation shape where it is wider than ``dynamics``' variables (an env
-    with ``observe_traits`` or ``measurement``); ``None``: one entry per variable.
+    with ``observe_traits`` or ``measurement``); ``None``: one entry per variable. ``trust_pickles``: read
+    by unpickling (which can run code) what the safe readers refuse. A model whose zip shows it was trained
+    on ``VecNormalize``-wrapped envs, loaded without recorded statistics, gets a warning: it acts on raw
+    observations.
 
     Raises:
         FileNotFoundError: no such file.
+        UnsafeFileError: a file that only unpickling could read, without ``trust_pickles``.
         ValueError: not an SB3 model zip, an unknown algorithm, or spaces that do not match the env's.
     """
     path = Path(path)
@@ -165,50 +183,133 @@ def load_model_policy(
     if not path.is_file():
         raise FileNotFoundError(f"model file not found: {path}")
     algo = detect_algorithm(path)
-    model = _load_model(path, algo)
+    model = load_model(path, algo, trust_pickles=trust_pickles)
     _check_spaces(path, model, dynamics or default_dynamics(), obs_shape)
     normalizer_path = recorded_normalizer(path)
-    normalizer = _load_normalizer(normalizer_path) if normalizer_path is not None else None
+    normalizer = load_normalizer(normalizer_path, trust_pickles=trust_pickles) if normalizer_path is not None else None
+    if normalizer is None:
+        _warn_if_trained_normalized(path)
     policy = ModelPolicy(model, normalizer, name=str(path))
     policy.normalizer_path = normalizer_path
     return policy
 
 
-def recorded_normalizer(path: str | Path) -> Path | None:
-    """The ``VecNormalize`` file saved with the model at ``path``, as its ``heartpole.json`` records it.
+def load_model(path: str | Path, algo: str, *, trust_pickles: bool = False) -> SavedModel | BaseAlgorithm:
+    """The model saved at ``path``, rebuilt without unpickling
+    ([`rebuild_model`][heartpole.policies.rebuild.rebuild_model]: ``heartpole.json``'s ``net_arch`` or the
+    zip's plain record, and the weights-only ``policy.pth``).
 
-    ``heartpole train`` writes ``heartpole.json`` beside the model with ``"model"`` (the zip's name) and
-    ``"vecnormalize"`` (the statistics' file name, or ``null``), each with its SHA-256. Only a file recorded
-    there for this model is applied; a ``vecnormalize.pkl`` that merely lies beside the model is ignored,
-    with a warning. For a model of your own, write ``{"algo": "ppo", "model": "my.zip", "vecnormalize":
-    "my_vecnormalize.pkl"}`` beside it.
+    A zip whose pickled data entries import what SB3 never saves is refused (they are parsed, never run).
+    With ``trust_pickles`` that check is skipped, and a model the safe reader cannot rebuild (another policy
+    class, an architecture recorded only in pickles) is loaded by SB3's ``load``, which unpickles.
+
+    Raises:
+        UnsafeFileError: only unpickling could read it, and not ``trust_pickles``.
+        ValueError: not a usable SB3 model zip.
+    """
+    path = Path(path)
+    data = model_data(path)
+    if not trust_pickles:
+        check_data_pickles(path, data)
+    try:
+        return rebuild_model(path, algo, data, _recorded_net_arch(path))
+    except UnsafeFileError:
+        if not trust_pickles:
+            raise
+    return _unpickle_model(path, algo)
+
+
+def load_normalizer(path: str | Path, *, trust_pickles: bool = False) -> Normalizer:
+    """The observation statistics in ``path``: ``vecnormalize.json`` as plain JSON, a ``vecnormalize.pkl``
+    through the restricted unpickler (arrays and numbers only), or, with ``trust_pickles``, by ``pickle`` where
+    that refuses it.
+
+    Raises:
+        UnsafeFileError: a pickle that refers to more than a ``VecNormalize`` holds, and not ``trust_pickles``.
+        ValueError: not a statistics file.
+    """
+    path = Path(path)
+    if path.suffix == ".json":
+        return load_statistics(path)
+    try:
+        return unpickle_statistics(path)
+    except UnsafeFileError:
+        if not trust_pickles:
+            raise
+    return _unpickle_normalizer(path)
+
+
+def _recorded_net_arch(path: Path) -> list[int] | None:
+    """The hidden layer sizes ``heartpole.json`` records for this model (``config.net_arch``), if any."""
+    record = _sidecar_record(path)
+    config = record.get("config") if record is not None else None
+    net_arch = config.get("net_arch") if isinstance(config, dict) else None
+    if net_arch is None:
+        return None
+    if not isinstance(net_arch, list) or not all(isinstance(n, int) and not isinstance(n, bool) for n in net_arch):
+        raise ValueError(f"{path.parent / SIDECAR_NAME}: config.net_arch must list layer sizes, got {net_arch!r}")
+    return net_arch
+
+
+def _warn_if_trained_normalized(path: Path) -> None:
+    """Warn when the zip records the unnormalised observations SB3 keeps only under ``VecNormalize``
+    (``_last_original_obs``), since no statistics are applied (unless statistics lie beside it unrecorded:
+    `recorded_normalizer` has warned about those)."""
+    if any((path.parent / name).is_file() for name in (VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME)):
+        return
+    try:
+        trained_normalized = model_data(path).get("_last_original_obs") is not None
+    except ValueError:
+        return
+    if trained_normalized:
+        warnings.warn(
+            f"{path} was trained on VecNormalize-wrapped envs (its data records unnormalised observations), but no "
+            f"statistics are recorded with it in a {SIDECAR_NAME} beside it: it acts on raw observations and may "
+            f"behave nothing like it did in training. Copy the {SIDECAR_NAME} and {VECNORMALIZE_JSON_NAME} (or "
+            f"{VECNORMALIZE_NAME}) saved with it into its folder.",
+            UserWarning,
+            stacklevel=3,
+        )
+
+
+def recorded_normalizer(path: str | Path) -> Path | None:
+    """The observation statistics saved with the model at ``path``, as its ``heartpole.json`` records them.
+
+    ``heartpole train`` writes ``heartpole.json`` beside the model with ``"model"`` (the zip's name),
+    ``"vecnormalize"`` (``VecNormalize.save``'s pickle, or ``null``) and ``"vecnormalize_json"`` (the same
+    statistics as plain JSON, which is preferred: runs before it have only the pickle), each with its
+    SHA-256. Only a file recorded there for this model is applied; statistics that merely lie beside the
+    model are ignored, with a warning. For a model of your own, write ``{"algo": "ppo", "model": "my.zip",
+    "vecnormalize": "my_vecnormalize.pkl"}`` beside it.
 
     Raises:
         ValueError: the record names statistics that are missing or were changed since they were saved.
     """
     path = Path(path)
     record = _sidecar_record(path)
-    beside = path.parent / VECNORMALIZE_NAME
-    if record is None or record.get("vecnormalize") is None:
-        if beside.is_file():
-            why = "records no statistics for it" if record is not None else f"has no {SIDECAR_NAME} recording them"
-            warnings.warn(
-                f"ignoring {beside}: the model {path.name} {why}, so they may belong to another model. If they "
-                f'are this model\'s, record them beside it in {SIDECAR_NAME}: {{"model": "{path.name}", '
-                f'"vecnormalize": "{VECNORMALIZE_NAME}"}}',
-                UserWarning,
-                stacklevel=3,
-            )
+    key = "vecnormalize"
+    if record is not None and record.get("vecnormalize_json") is not None:
+        key = "vecnormalize_json"
+    if record is None or record.get(key) is None:
+        for beside in (path.parent / VECNORMALIZE_JSON_NAME, path.parent / VECNORMALIZE_NAME):
+            if beside.is_file():
+                why = "records no statistics for it" if record is not None else f"has no {SIDECAR_NAME} recording them"
+                warnings.warn(
+                    f"ignoring {beside}: the model {path.name} {why}, so they may belong to another model. If they "
+                    f'are this model\'s, record them beside it in {SIDECAR_NAME}: {{"model": "{path.name}", '
+                    f'"vecnormalize": "{beside.name}"}}',
+                    UserWarning,
+                    stacklevel=3,
+                )
+                break
         return None
-    name = record["vecnormalize"]
+    name = record[key]
     if not isinstance(name, str) or Path(name).name != name:
-        raise ValueError(
-            f"{path.parent / SIDECAR_NAME}: 'vecnormalize' must be a file name beside the model, got {name!r}"
-        )
+        raise ValueError(f"{path.parent / SIDECAR_NAME}: {key!r} must be a file name beside the model, got {name!r}")
     statistics = path.parent / name
     if not statistics.is_file():
         raise ValueError(f"{path}: its observation statistics {statistics} (recorded in {SIDECAR_NAME}) are missing")
-    digest = record.get("vecnormalize_sha256")
+    digest = record.get(f"{key}_sha256")
     if digest is not None and file_sha256(statistics) != digest:
         raise ValueError(
             f"{statistics} changed since it was saved with {path.name} (its SHA-256 differs from the record)"
@@ -254,7 +355,7 @@ def detect_algorithm(path: str | Path) -> str:
     sidecar = path.parent / SIDECAR_NAME
     if sidecar.is_file():
         return _algorithm_from_sidecar(sidecar)
-    data = _zip_data(path)
+    data = model_data(path)
     policy_class = data.get("policy_class")
     described = json.dumps(policy_class, allow_nan=False) if isinstance(policy_class, dict) else str(policy_class)
     if "dqn" in described.lower():
@@ -274,18 +375,8 @@ def _algorithm_from_sidecar(sidecar: Path) -> str:
     return algo.lower()
 
 
-def _zip_data(path: Path) -> dict[str, Any]:
-    try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as error:
-        raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({one_line(error)})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: not a Stable-Baselines3 model zip (its data is not a JSON object)")
-    return data
-
-
-def _load_model(path: Path, algo: str) -> BaseAlgorithm:
+def _unpickle_model(path: Path, algo: str) -> BaseAlgorithm:
+    """SB3's ``load``, which unpickles the zip's data: only with ``trust_pickles``."""
     try:
         import stable_baselines3 as sb3
     except ImportError:
@@ -301,7 +392,7 @@ def _load_model(path: Path, algo: str) -> BaseAlgorithm:
 
 
 def _check_spaces(
-    path: Path, model: BaseAlgorithm, dynamics: Dynamics, obs_shape: tuple[int, ...] | None = None
+    path: Path, model: SavedModel | BaseAlgorithm, dynamics: Dynamics, obs_shape: tuple[int, ...] | None = None
 ) -> None:
     obs_shape = (len(dynamics.variables),) if obs_shape is None else tuple(obs_shape)
     model_obs = tuple(getattr(model.observation_space, "shape", ()) or ())
@@ -313,7 +404,8 @@ def _check_spaces(
         )
 
 
-def _load_normalizer(path: Path) -> Normalizer:
+def _unpickle_normalizer(path: Path) -> Normalizer:
+    """``pickle.load`` of a ``VecNormalize`` file, which can run code: only with ``trust_pickles``."""
     try:
         with path.open("rb") as handle:
             normalizer = pickle.load(handle)

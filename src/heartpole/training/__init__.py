@@ -16,9 +16,10 @@ of the saved model, the summaries):
 * [`TrainConfig`][heartpole.training.presets.TrainConfig] and [`PRESETS`][heartpole.training.presets.PRESETS]: the
   ``default`` preset (PPO that solves HeartPole-v0) and the ``tutorial`` preset (the tutorial's DQN with ``net_arch=[16,
   16]`` and SB3's default hyperparameters).
-* [`train_run`][heartpole.training.runs.train_run] trains one seed and writes ``model.zip``, ``vecnormalize.pkl`` (when
-  observations are normalised), ``heartpole.json``, ``learning_curve.csv`` and ``evaluation.json`` (2,000 episodes of
-  [`heartpole.evaluation.evaluate`][heartpole.evaluation.evaluate] on the saved files);
+* [`train_run`][heartpole.training.runs.train_run] trains one seed and writes ``model.zip``, ``vecnormalize.pkl`` and
+  ``vecnormalize.json`` (when observations or rewards are normalised), ``heartpole.json``, ``learning_curve.csv`` and
+  ``evaluation.json`` (2,000 episodes of [`heartpole.evaluation.evaluate`][heartpole.evaluation.evaluate] on the saved
+  files);
   [`train_seeds`][heartpole.training.runs.train_seeds] trains several seeds and summarises them with the interquartile
   mean and a bootstrap interval (rliable's recommendation).
 

@@ -15,8 +15,9 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_NAME
+from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME
 from heartpole.policies.saved import file_sha256
+from heartpole.policies.untrusted import save_statistics
 from heartpole.records import (
     SUMMARY_FILE,
     LinearSchedule,
@@ -96,7 +97,8 @@ def train_run(
 ) -> dict[str, Any]:
     """Train one seed and write its files into ``folder`` (created if missing); return its summary.
 
-    Files: ``model.zip``, ``vecnormalize.pkl`` (when observations or rewards are normalised),
+    Files: ``model.zip``, ``vecnormalize.pkl`` and ``vecnormalize.json`` (the same statistics as plain JSON,
+    which loading reads without unpickling; when observations or rewards are normalised),
     ``heartpole.json`` (the configuration, timings and versions), ``learning_curve.csv`` and
     ``evaluation.json`` ([`heartpole.evaluation.evaluate`][heartpole.evaluation.evaluate] of the saved model over
     ``eval_episodes`` episodes with ``eval_seed``, loaded back from the files by
@@ -110,6 +112,7 @@ def train_run(
     trained.model.save(folder / MODEL_NAME)
     if trained.normalizer is not None:
         trained.normalizer.save(str(folder / VECNORMALIZE_NAME))
+        save_statistics(trained.normalizer, folder / VECNORMALIZE_JSON_NAME)
     write_curve(folder / CURVE_NAME, trained.curve)
     sidecar: dict[str, Any] = {
         **run_description(config),
@@ -118,6 +121,11 @@ def train_run(
         # the statistics saved with this model: load_policy applies these and no others
         "vecnormalize": VECNORMALIZE_NAME if trained.normalizer is not None else None,
         "vecnormalize_sha256": file_sha256(folder / VECNORMALIZE_NAME) if trained.normalizer is not None else None,
+        # the same statistics as plain JSON: what load_policy reads (the pickle is for SB3's VecNormalize.load)
+        "vecnormalize_json": VECNORMALIZE_JSON_NAME if trained.normalizer is not None else None,
+        "vecnormalize_json_sha256": (
+            file_sha256(folder / VECNORMALIZE_JSON_NAME) if trained.normalizer is not None else None
+        ),
         "train_seconds": round(trained.seconds, 2),
         "versions": versions(),
     }
