@@ -21,9 +21,10 @@ try:
 except ImportError as error:  # pragma: no cover - exercised in a subprocess without JAX
     raise ImportError(f"heartpole.jax needs JAX: {JAX_EXTRA}") from error
 
-from heartpole.jax.env import MODEL, RNG, EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
+from heartpole.jax.env import EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
 from heartpole.jax.evaluation import evaluate, evaluate_batch  # noqa: E402
 from heartpole.jax.spaces import Box, Discrete  # noqa: E402
+from heartpole.jax.traced import MODEL, RNG  # noqa: E402
 
 __all__ = [
     "Box",

@@ -35,8 +35,9 @@ from heartpole.evaluation import (
     optimum_or_reason,
     summarise,
 )
-from heartpole.jax.env import MODEL, RNG, EnvParams, EnvState, HeartPoleJax
+from heartpole.jax.env import EnvParams, EnvState, HeartPoleJax
 from heartpole.jax.policies import Act, builtin_act
+from heartpole.jax.traced import MODEL, RNG
 from heartpole.model import TIME_ELAPSED, WORK_DONE, check_integer
 from heartpole.policies import policy_name
 from heartpole.rewards import expected_risk

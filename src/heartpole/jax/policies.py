@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from heartpole.jax.env import MODEL
+from heartpole.jax.traced import MODEL
 from heartpole.model import ALERTNESS, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT
 from heartpole.policies import BUILTIN_POLICIES, load_policy
 from heartpole.policies.builtins import ConstantPolicy, ExpertPolicy, OptimalPolicy, RandomPolicy, ReferencePolicy
