@@ -5,6 +5,7 @@ device JAX has (a GPU where JAX finds one, else the CPU).
     python benchmarks/jax_speed.py --envs 1024 16384 262144 1048576 4194304 --steps 100   # a GPU's table
     python benchmarks/jax_speed.py --envs 16384 --numpy              # + the NumPy vector envs (CPU)
     python benchmarks/jax_speed.py --fusions                         # + XLA's fused kernels in one step
+    XLA_FLAGS=--xla_cpu_multi_thread_eigen=false python benchmarks/jax_speed.py --clock cpu   # a busy CPU
 
 JAX envs run as their users run them: ``jit(vmap(step))`` over all envs, ``lax.scan`` over the steps, random
 actions drawn inside the compiled loop, autoreset on. Columns: HeartPole-v0, HeartPole-v0 with
@@ -53,15 +54,22 @@ def stepper(env: Any, params: Any, num_envs: int, steps: int) -> Callable[[jax.A
     return run
 
 
-def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int) -> float:
-    """Steps per second of a gymnax-API env stepped ``num_envs`` wide for ``steps`` (median of ``repeats``)."""
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+"""What a run is timed by: wall time (a device's figures), or the process's CPU time, all its threads (a
+shared CPU's: a run's waits for a core do not count; run XLA on one thread then, as the module docstring shows)."""
+
+
+def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int, clock: str = "wall") -> float:
+    """Steps per second of a gymnax-API env stepped ``num_envs`` wide for ``steps`` (median of ``repeats``), by
+    ``clock`` (`CLOCKS`)."""
+    now = CLOCKS[clock]
     compiled = jax.jit(stepper(env, params, num_envs, steps)).lower(jax.random.key(0)).compile()
     compiled(jax.random.key(0)).block_until_ready()  # the first call may load or allocate
     times = []
     for repeat in range(repeats):
-        started = time.perf_counter()
+        started = now()
         compiled(jax.random.key(repeat + 1)).block_until_ready()
-        times.append(time.perf_counter() - started)
+        times.append(now() - started)
     return num_envs * steps / statistics.median(times)
 
 
@@ -113,6 +121,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (default 3)")
     parser.add_argument("--numpy", action="store_true", help="add the NumPy vector envs (CPU) at every size")
     parser.add_argument("--fusions", action="store_true", help="print XLA's fused kernels in one vmapped step")
+    parser.add_argument("--clock", choices=CLOCKS, default="wall", help="wall (default) or cpu time of the process")
     args = parser.parse_args()
     if min(args.envs) < 1 or args.steps < 1 or args.repeats < 1:
         parser.error("--envs, --steps and --repeats must be positive")
@@ -125,10 +134,11 @@ def main() -> None:
         header += ["HeartPole / CartPole", "people / v0"]
     if args.numpy:
         header += ["HeartPole-v0 NumPy (numba)", "CartPoleVectorEnv"]
-    print(f"\n{args.steps} steps a run, median of {args.repeats}; jax {jax.__version__}, devices {jax.devices()}\n")
+    print(f"\n{args.steps} steps a run, median of {args.repeats} ({args.clock} time); jax {jax.__version__}, "
+          f"devices {jax.devices()}\n")  # fmt: skip
     print("| " + " | ".join(header) + " |\n|" + "---:|" * len(header))
     for n in args.envs:
-        speeds = [jax_env_speed(env, params, n, args.steps, args.repeats) for _, env, params in columns]
+        speeds = [jax_env_speed(env, params, n, args.steps, args.repeats, args.clock) for _, env, params in columns]
         cells = [f"{n:,}", *(f"{s / 1e6:,.1f} M" for s in speeds)]
         if len(columns) == 3:
             cells += [f"{speeds[0] / speeds[2]:.2f}", f"{speeds[1] / speeds[0]:.2f}"]
