@@ -24,7 +24,9 @@ from heartpole.cli.common import CommandError
 
 WRITE_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO})
 """The ``OSError`` numbers of a place that cannot take the output (a full disk, a quota, a read-only file system,
-no permission): said in one line naming the output, exit code 2."""
+no permission): said in one line naming the file, exit code 2."""
+ONLY_WRITES_FAIL_SO = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
+"""Of those, the ones only a write meets (said as ``cannot write PATH: reason``)."""
 
 DESCRIPTION = """\
 HeartPole: CartPole for health. An agent decides every half-hour of a working day whether to do
@@ -138,7 +140,8 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
             raise
         # A full disk or a read-only file system met while writing: heartpole.files removed what it had
         # written, and named the output (not its temporary name).
-        print(f"heartpole {args.command}: error: cannot write {paths.describe_error(error)}", file=sys.stderr)
+        verb = "cannot write " if error.errno in ONLY_WRITES_FAIL_SO else ""
+        print(f"heartpole {args.command}: error: {verb}{paths.describe_error(error)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet
