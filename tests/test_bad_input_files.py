@@ -141,7 +141,7 @@ def test_an_mp4_ffmpeg_could_not_finish_is_never_reported_written(
     monkeypatch.setattr(imageio, "get_writer", Truncated)
     out = tmp_path / "tiny" / "x.mp4"
     result = run(capsys, "record", "--policy", "expert", "--steps", "60", "--out", str(out))
-    one_error(result, "record", f"cannot write {out}")
+    one_error(result, "record", f"{out}: ffmpeg did not write a whole video")
     assert "wrote" not in result[1]
     assert list(tmp_path.iterdir()) == []  # no video, no temporary file, no folder made for it
 

@@ -155,6 +155,7 @@ def examples_shown_as_prose(site: Path) -> dict[str, int]:
 
 def test_every_docstring_example_renders_as_code_with_its_prompts(site: Path) -> None:
     assert examples_shown_as_prose(site) == {}
+    assert [str(p) for p in site.rglob("*.html") if "```pycon" in p.read_text()] == []  # no fence shown as text
     code = "\n".join(shown_as_code(page.read_text()) for page in (site / "api").rglob("*.html"))
     examples = docstring_examples()
     assert sum(map(len, examples.values())) > 50  # the package's examples were found (78 lines today)

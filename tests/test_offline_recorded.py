@@ -144,3 +144,17 @@ def test_measurement_on_the_command_line_is_checked(
     assert "--measurement" in error and message in error and repr(value) in error
     assert main(["dataset", "--standard", "--measurement", json.dumps(MEASUREMENT)]) == 2
     assert not any(minari_folder.iterdir())
+
+
+@pytest.mark.slow
+def test_a_variants_dataset_recovers_its_env_where_the_variant_is_registered() -> None:
+    """A user's variant (its actions are objects, which Minari could not store) is stored by id, like any
+    registered env; recovering it makes the variant, with its fifth action and its episode length."""
+    from heartpole.offline.datasets import record_dataset
+
+    tea = heartpole.Action("drink_tea", effects={"alertness": (0.0, 0.5)})
+    heartpole.register_variant("RecordedTeaPole-v0", [*heartpole.V0_ACTIONS, tea], max_steps=30, replace=True)
+    dataset = record_dataset("random", 0.0, 3, env_id="RecordedTeaPole-v0")
+    assert dataset.spec.env_spec is not None and dataset.spec.env_spec.kwargs == {"env_id": "RecordedTeaPole-v0"}
+    check_recovers_its_env(dataset.spec.dataset_id, {})
+    assert dataset.recover_environment().unwrapped.actions[4].name == "drink_tea"

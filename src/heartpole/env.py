@@ -416,7 +416,10 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
             flat, overlay = self._persons.flat, self._persons.overlay
             step, arguments = person_kernel.step_one, (self._rng, flat, self.dynamics.layout, self._cells, overlay)
         self._kernel_arguments = arguments
-        self._step_kernel = step if self._envs is None else compiled_for(step, (self._envs, 0, *arguments))
+        if self._envs is None:
+            self._step_kernel = step
+        elif getattr(self, "_step_kernel", step) is step:  # typed once: every episode's arrays have the same types
+            self._step_kernel = compiled_for(step, (self._envs, 0, *arguments))
 
     def __getstate__(self) -> dict[str, Any]:
         """The env's state for ``pickle`` and ``copy``: without what `_plan` derives (views and compiled code)."""

@@ -9,6 +9,7 @@ files) end in one clear line on stderr and exit code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import atexit
 import errno
 import importlib
 import os
@@ -24,7 +25,9 @@ from heartpole.cli.common import CommandError
 
 WRITE_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG, errno.EIO})
 """The ``OSError`` numbers of a place that cannot take the output (a full disk, a quota, a read-only file system,
-no permission): said in one line naming the output, exit code 2."""
+no permission): said in one line naming the file, exit code 2."""
+ONLY_WRITES_FAIL_SO = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG})
+"""Of those, the ones only a write meets (said as ``cannot write PATH: reason``)."""
 
 DESCRIPTION = """\
 HeartPole: CartPole for health. An agent decides every half-hour of a working day whether to do
@@ -70,6 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     command = ["heartpole"]
     paths.forget_outputs()
+    finished: list[int] = []
+    if argv is None:  # before the policy, which puts these back when it ends: no moment without them
+        _exit_on_signal(finished)
     try:
         with files.signal_policy():  # first thing: from here on, a signal unwinds through every cleanup
             try:
@@ -84,8 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 code = _interrupted(command)
     except KeyboardInterrupt:  # another signal while saying so, or while the handlers were put back
         code = 0 if paths.outputs_placed() else files.exit_code()
-    if argv is None:
-        _exit_on_signal(code)
+    finished.append(code)
     return code
 
 
@@ -99,10 +104,13 @@ def _interrupted(command: list[str]) -> int:
     return files.exit_code()
 
 
-def _exit_on_signal(code: int) -> None:
-    """From now until the process ends (Python shutting down: threads joined, modules torn down), SIGINT,
-    SIGTERM and SIGHUP end it at once with ``code``, the command's own exit status, not with the signal's:
-    the command is over, and its output is what ``code`` says. Ignored signals stay ignored."""
+def _exit_on_signal(finished: list[int]) -> None:
+    """Outside [`heartpole.files.signal_policy`][heartpole.files.signal_policy] (before the command starts, and from
+    its end until the process ends: Python shutting down, threads joined, modules torn down), SIGINT, SIGTERM and
+    SIGHUP end the process at once: with the command's own exit code once it is in ``finished`` (the command is
+    over, and its output is what that code says), else with 0 if its output is in place, else with 128 + the
+    signal's number (nothing was written).
+    Ignored signals stay ignored."""
 
     def finish(signum: int, frame: object) -> None:
         for stream in (sys.stdout, sys.stderr):
@@ -110,13 +118,27 @@ def _exit_on_signal(code: int) -> None:
                 stream.flush()
             except (OSError, ValueError):
                 pass
-        os._exit(code)
+        if finished:
+            os._exit(finished[0])
+        if paths.outputs_placed():
+            os._exit(0)
+        os._exit(files.exit_code() if files.received_signal() is not None else 128 + signum)
 
     if threading.current_thread() is not threading.main_thread():
         return  # only the main thread may set handlers (and only it receives signals)
     for s in files.SIGNALS:
         if signal.getsignal(s) not in (signal.SIG_IGN, None):
             signal.signal(s, finish)
+    atexit.register(_ignore_from_here, finish)
+
+
+def _ignore_from_here(finish: object) -> None:
+    """At exit, ignore the signals ``finish`` handles: Python stops running signal handlers once its ``atexit``
+    callbacks are done and gives the signals their default action back (which would end a finished command
+    with the signal's status while its modules are torn down); ignored signals stay ignored."""
+    for s in files.SIGNALS:
+        if signal.getsignal(s) is finish:
+            signal.signal(s, signal.SIG_IGN)
 
 
 def _run(argv: Sequence[str] | None, command: list[str]) -> int:
@@ -138,7 +160,8 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
             raise
         # A full disk or a read-only file system met while writing: heartpole.files removed what it had
         # written, and named the output (not its temporary name).
-        print(f"heartpole {args.command}: error: cannot write {paths.describe_error(error)}", file=sys.stderr)
+        verb = "cannot write " if error.errno in ONLY_WRITES_FAIL_SO else ""
+        print(f"heartpole {args.command}: error: {verb}{paths.describe_error(error)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet

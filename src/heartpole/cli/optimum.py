@@ -174,7 +174,7 @@ def _check(
 
     results = {}
     for policy in policies:
-        steps = args.check * int(kwargs.get("max_steps", 1000))
+        steps = args.check * int(kwargs.get("max_steps", kwargs.get("max_episode_steps", 1000)))
         with progress(steps, f"checking {policy}") as bar:
             results[policy] = evaluate(policy, args.env, args.check, args.seed, env_kwargs=kwargs, progress=bar.update)
     return results

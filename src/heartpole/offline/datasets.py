@@ -336,10 +336,7 @@ def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
     if isinstance(policy, str):
         loaded = load_policy(policy, env_id, rng=policy_rng(seed, index))
         if getattr(loaded, "needs_decisions_left", False) or getattr(loaded, "needs_person", False):
-            raise ValueError(
-                f"policy {policy!r} acts on more than the observation (the decisions left, or the person), which a "
-                "dataset does not record; record a policy of the observation alone"
-            )
+            raise ValueError(f"policy {policy!r} acts on the decisions left or the person, not recorded in a dataset")
         return loaded
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
@@ -432,8 +429,7 @@ def _minari_root(path: Path) -> Iterator[None]:
 
 
 def _check_dataset_id(target_id: str) -> None:
-    """Minari's own id grammar, and that the dataset can be written in Minari's folder, checked before anything
-    runs."""
+    """Minari's own id grammar, and that the dataset can be written in Minari's folder, checked before it runs."""
     from minari.dataset.minari_dataset import parse_dataset_id
 
     try:

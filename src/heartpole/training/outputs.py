@@ -42,7 +42,7 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
     try:
         paths.check_writable(out)
     except OSError as error:
-        raise OSError(f"cannot write --out {paths.describe_error(error)}") from None
+        raise OSError(f"cannot write --out {out}: {error.strerror or error}") from None
     return out
 
 
