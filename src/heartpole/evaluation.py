@@ -1,7 +1,7 @@
 """Honest evaluation of HeartPole policies: many episodes, 95% intervals, a low-variance estimate, pairs.
 
 [`evaluate`][heartpole.evaluation.evaluate] runs a policy for ``episodes`` full episodes on the native vector env and
-returns an [`EvaluationResult`][heartpole.evaluation.EvaluationResult] with two estimates of the expected return, each
+returns an [`EvaluationResult`][heartpole.results.EvaluationResult] with two estimates of the expected return, each
 with a 95% interval:
 
 * the *realized* return, the mean of the episodes' returns. An episode's return telescopes to its final
@@ -26,22 +26,22 @@ built-in draws its actions from ``SeedSequence(seed, spawn_key=(1,))``, apart fr
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
 from heartpole.model import check_integer
 from heartpole.policies import Policy, available_builtins, load_policy, policy_name
+from heartpole.results import Comparison as Comparison
+from heartpole.results import Episodes as Episodes
+from heartpole.results import EvaluationResult as EvaluationResult
 from heartpole.rewards import expected_risk
 from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
 from heartpole.solved import SOLVED_REGRET as SOLVED_REGRET
-from heartpole.solved import regret_solved
-from heartpole.stats import confidence_interval, json_interval, json_number
 from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 
 if TYPE_CHECKING:
@@ -63,227 +63,7 @@ Progress = Callable[[int], None]
 
 
 # ------------------------------------------------------------------------------------------------------
-# results
-
-SUMMARIES = (
-    ("mean_return", "ci95", "returns"),
-    ("expected_return", "expected_ci95", "expected_returns"),
-    ("heart_attacks_per_episode", "heart_attacks_ci95", "heart_attacks"),
-    ("expected_heart_attacks_per_episode", None, "expected_heart_attacks"),
-    ("score", "score_ci95", "scores"),
-    ("drinks_per_episode", None, "drinks"),
-    ("sleeps_per_episode", None, "sleeps"),
-)
-"""How [`EvaluationResult`][heartpole.evaluation.EvaluationResult] summarises per-episode values: (its mean's
-field, its 95% interval's field or ``None``, the per-episode field)."""
-
-
-@dataclass(frozen=True)
-class EvaluationResult:
-    """A policy's performance over ``episodes`` episodes, with 95% intervals and the per-episode values.
-
-    ``mean_return`` is the realized mean return; ``expected_return`` the expected-risk estimate of the same
-    quantity (final score - 100 x the summed heart-attack probabilities). ``score`` is the mean final
-    ``work_done / time_elapsed``. Per-episode arrays (float64 or int64) are in episode order. With fewer
-    than two episodes the intervals are ``nan``; without an optimum the regret is, and ``no_regret_reason``
-    says why. Under ``people``, ``person`` is each episode's person (cohort index, -1 without one) and
-    ``oracle_regret`` the mean of (that person's optimum - expected-risk return), [`heartpole.truth`][heartpole.truth]'s
-    (``nan`` without people or a cohort's optima: ``no_oracle_regret_reason`` says why).
-    """
-
-    policy: str
-    env_id: str
-    episodes: int
-    seed: int
-    num_envs: int
-    max_steps: int
-    mean_return: float
-    ci95: tuple[float, float]
-    expected_return: float
-    expected_ci95: tuple[float, float]
-    heart_attacks_per_episode: float
-    heart_attacks_ci95: tuple[float, float]
-    expected_heart_attacks_per_episode: float
-    score: float
-    score_ci95: tuple[float, float]
-    drinks_per_episode: float
-    sleeps_per_episode: float
-    seconds: float
-    returns: np.ndarray = field(repr=False, compare=False)
-    expected_returns: np.ndarray = field(repr=False, compare=False)
-    scores: np.ndarray = field(repr=False, compare=False)
-    heart_attacks: np.ndarray = field(repr=False, compare=False)
-    expected_heart_attacks: np.ndarray = field(repr=False, compare=False)
-    drinks: np.ndarray = field(repr=False, compare=False)
-    sleeps: np.ndarray = field(repr=False, compare=False)
-    person: np.ndarray = field(repr=False, compare=False)
-    optimal_return: float = math.nan
-    regret: float = math.nan
-    regret_ci95: tuple[float, float] = (math.nan, math.nan)
-    no_regret_reason: str | None = None
-    oracle_regret: float = math.nan
-    oracle_regret_ci95: tuple[float, float] = (math.nan, math.nan)
-    no_oracle_regret_reason: str | None = None
-
-    def with_regret(self, optimal_return: float, error_bound: float = 0.0) -> EvaluationResult:
-        """This result with its regret: ``optimal_return`` minus the expected-risk return.
-
-        The 95% interval is the expected-risk interval reflected, widened by ``error_bound``: the optimum's
-        [`margin`][heartpole.optimum.solution.OptimumSolution.margin] (its grid's error and what the history it does
-        not see is worth) where evaluation computes the regret.
-        """
-        low, high = self.expected_ci95
-        interval = (optimal_return - high - error_bound, optimal_return - low + error_bound)
-        regret = optimal_return - self.expected_return
-        return replace(self, optimal_return=optimal_return, regret=regret, regret_ci95=interval)
-
-    @property
-    def solved(self) -> bool | None:
-        """Whether the regret's 95% upper bound is at most [`SOLVED_REGRET`][heartpole.solved.SOLVED_REGRET];
-        ``None`` without an optimum."""
-        return regret_solved(self.regret_ci95[1])
-
-    @classmethod
-    def from_episodes(cls, episodes: Episodes, **about: Any) -> EvaluationResult:
-        """Summarise per-episode values; ``about`` holds policy, env_id, seed, num_envs, max_steps, seconds."""
-        summary: dict[str, Any] = {}
-        for mean, interval, values in SUMMARIES:
-            array = getattr(episodes, values)
-            summary[mean] = float(array.mean())
-            if interval is not None:
-                summary[interval] = confidence_interval(array)
-        arrays = {name: getattr(episodes, name) for name in Episodes.__dataclass_fields__}
-        return cls(episodes=len(episodes.returns), **summary, **arrays, **about)
-
-    @property
-    def width_ratio(self) -> float:
-        """How many times narrower the expected-risk interval is than the realized one (``inf`` where the
-        expected-risk return is the same in every episode, ``nan`` with fewer than two episodes)."""
-        expected = self.expected_ci95[1] - self.expected_ci95[0]
-        realized = self.ci95[1] - self.ci95[0]
-        return realized / expected if expected > 0 else math.inf
-
-    def to_dict(self, per_episode: bool = False) -> dict[str, Any]:
-        """JSON-safe summary (NaN and infinities become ``None``); ``per_episode`` adds the arrays as lists."""
-        out: dict[str, Any] = {
-            "policy": self.policy,
-            "env_id": self.env_id,
-            "episodes": self.episodes,
-            "seed": self.seed,
-            "num_envs": self.num_envs,
-            "max_steps": self.max_steps,
-            "mean_return": json_number(self.mean_return),
-            "ci95": json_interval(self.ci95),
-            "expected_return": json_number(self.expected_return),
-            "expected_ci95": json_interval(self.expected_ci95),
-            "heart_attacks_per_episode": json_number(self.heart_attacks_per_episode),
-            "heart_attacks_ci95": json_interval(self.heart_attacks_ci95),
-            "expected_heart_attacks_per_episode": json_number(self.expected_heart_attacks_per_episode),
-            "score": json_number(self.score),
-            "score_ci95": json_interval(self.score_ci95),
-            "drinks_per_episode": json_number(self.drinks_per_episode),
-            "sleeps_per_episode": json_number(self.sleeps_per_episode),
-            "optimal_return": json_number(self.optimal_return),
-            "regret": json_number(self.regret),
-            "regret_ci95": json_interval(self.regret_ci95),
-            "solved": self.solved,
-            "no_regret_reason": self.no_regret_reason,
-            "oracle_regret": json_number(self.oracle_regret),
-            "oracle_regret_ci95": json_interval(self.oracle_regret_ci95),
-            "no_oracle_regret_reason": self.no_oracle_regret_reason,
-            "seconds": round(self.seconds, 3),
-        }
-        if per_episode:
-            for key in ("returns", "expected_returns", "scores", "heart_attacks", "drinks", "sleeps", "person"):
-                out[key] = getattr(self, key).tolist()
-        return out
-
-
-@dataclass(frozen=True)
-class Comparison:
-    """Policy ``a`` minus policy ``b``, episode by episode, from evaluations with common random numbers.
-
-    ``difference`` is the mean realized return of ``a`` minus that of ``b``, ``expected_difference`` the
-    same for the expected-risk estimate, ``score_difference`` for the final score; each with the 95%
-    interval of the paired differences.
-    """
-
-    a: EvaluationResult
-    b: EvaluationResult
-    difference: float
-    ci95: tuple[float, float]
-    expected_difference: float
-    expected_ci95: tuple[float, float]
-    score_difference: float
-    score_ci95: tuple[float, float]
-
-    @classmethod
-    def of(cls, a: EvaluationResult, b: EvaluationResult) -> Comparison:
-        """Pair two results episode by episode; they must come from the same env, seed and chunking.
-
-        Raises:
-            ValueError: if the results cannot be paired.
-        """
-        for key in ("env_id", "episodes", "seed", "num_envs", "max_steps"):
-            mine, theirs = getattr(a, key), getattr(b, key)
-            if mine != theirs:
-                raise ValueError(f"cannot pair evaluations with different {key}: {mine} vs {theirs}")
-        returns = a.returns - b.returns
-        expected = a.expected_returns - b.expected_returns
-        scores = a.scores - b.scores
-        return cls(
-            a=a,
-            b=b,
-            difference=float(returns.mean()),
-            ci95=confidence_interval(returns),
-            expected_difference=float(expected.mean()),
-            expected_ci95=confidence_interval(expected),
-            score_difference=float(scores.mean()),
-            score_ci95=confidence_interval(scores),
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe: both results' summaries and the paired differences."""
-        return {
-            "a": self.a.to_dict(),
-            "b": self.b.to_dict(),
-            "difference": {
-                "mean_return": json_number(self.difference),
-                "ci95": json_interval(self.ci95),
-                "expected_return": json_number(self.expected_difference),
-                "expected_ci95": json_interval(self.expected_ci95),
-                "score": json_number(self.score_difference),
-                "score_ci95": json_interval(self.score_ci95),
-            },
-            "env_id": self.a.env_id,
-            "episodes": self.a.episodes,
-            "seed": self.a.seed,
-        }
-
-
-# ------------------------------------------------------------------------------------------------------
 # running episodes
-
-
-@dataclass
-class Episodes:
-    """Per-episode values of an evaluation, or of one chunk of its episodes: the returns, expected-risk returns
-    and final scores (float64), heart attacks (int64), summed heart-attack probabilities (float64), drinks and
-    sleeps (int64) and each episode's person (int64, -1 without one)."""
-
-    returns: np.ndarray
-    expected_returns: np.ndarray
-    scores: np.ndarray
-    heart_attacks: np.ndarray
-    expected_heart_attacks: np.ndarray
-    drinks: np.ndarray
-    sleeps: np.ndarray
-    person: np.ndarray
-
-    @classmethod
-    def concatenate(cls, parts: Sequence[Episodes]) -> Episodes:
-        """The episodes of ``parts``, in order."""
-        return cls(*(np.concatenate([getattr(part, f) for part in parts]) for f in cls.__dataclass_fields__))
 
 
 def evaluate(
@@ -354,7 +134,7 @@ def evaluate(
 def summarise(
     episodes: Episodes, truth: PeopleOptimum | str | None, solution: OptimumSolution | str | None, **about: Any
 ) -> EvaluationResult:
-    """The [`EvaluationResult`][heartpole.evaluation.EvaluationResult] of ``episodes`` (every engine's:
+    """The [`EvaluationResult`][heartpole.results.EvaluationResult] of ``episodes`` (every engine's:
     [`evaluate`][heartpole.evaluation.evaluate]'s and [`heartpole.jax.evaluate`][heartpole.jax.evaluation.evaluate]'s),
     with the oracle regret against ``truth`` ([`people_truth`][heartpole.truth.people_truth]) and the regret against
     ``solution`` ([`optimum_or_reason`][heartpole.evaluation.optimum_or_reason]; ``None``: not asked for);

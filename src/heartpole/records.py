@@ -146,7 +146,7 @@ def evaluate_saved(
     by its path in ``final_folder``) and write ``evaluation.json``.
 
     Returns:
-        The evaluation as [`EvaluationResult.to_dict`][heartpole.evaluation.EvaluationResult.to_dict] gives it,
+        The evaluation as [`EvaluationResult.to_dict`][heartpole.results.EvaluationResult.to_dict] gives it,
         and the seconds it took.
     """
     from heartpole.evaluation import evaluate

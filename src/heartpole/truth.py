@@ -67,7 +67,7 @@ def people_truth(
 def oracle_fields(
     truth: PeopleOptimum | str | None, person: np.ndarray, expected_returns: np.ndarray
 ) -> dict[str, Any]:
-    """The oracle-regret fields of an [`EvaluationResult`][heartpole.evaluation.EvaluationResult] whose
+    """The oracle-regret fields of an [`EvaluationResult`][heartpole.results.EvaluationResult] whose
     episodes had these persons and expected-risk returns: ``oracle_regret`` and ``oracle_regret_ci95`` with
     each person's optimum, ``no_oracle_regret_reason`` with a reason, nothing without people."""
     if truth is None:

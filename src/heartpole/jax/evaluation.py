@@ -2,7 +2,7 @@
 played in one compiled call.
 
 [`evaluate`][heartpole.jax.evaluation.evaluate] takes ``heartpole.evaluate``'s arguments and returns its
-[`EvaluationResult`][heartpole.evaluation.EvaluationResult] (the same JSON): the expected-risk return, the regret
+[`EvaluationResult`][heartpole.results.EvaluationResult] (the same JSON): the expected-risk return, the regret
 against the optimum, the oracle regret under ``people``, the 95% intervals and the per-episode values. Its episodes
 are the NumPy evaluation's: each chunk of episodes starts where ``heartpole.evaluate``'s vector env starts (the same
 reset seed, the same people) and every step draws from the same generator states

@@ -3,7 +3,7 @@
 [`solve_people`][heartpole.optimum.people.solve_people] solves each distinct person of a finite
 [`People`][heartpole.people.People] once, through [`optimum`][heartpole.optimum.optimum] and its cache
 (memory and disk), several at a time in worker processes. The person's optimal expected return is the
-quantity [`EvaluationResult.with_regret`][heartpole.evaluation.EvaluationResult.with_regret] compares a
+quantity [`EvaluationResult.with_regret`][heartpole.results.EvaluationResult.with_regret] compares a
 policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grid's error
 and what the history it does not see was measured to be worth).
 
