@@ -2,8 +2,9 @@
 
 Gymnasium (its env checker, every vectorization mode in every autoreset mode, common wrappers),
 Stable-Baselines3 (its env checker, ``make_vec_env``, a short PPO run), RL Zoo3 (its train and enjoy entry
-points), TorchRL (``GymEnv`` and ``GymWrapper`` with ``check_env_specs`` and rollouts) and Minari
-(``DataCollector`` with infos, ``recover_environment``). Every run is tiny: these tests check that the pieces
+points), TorchRL (``GymEnv`` and ``GymWrapper`` with ``check_env_specs`` and rollouts), Minari
+(``DataCollector`` with infos, ``recover_environment``) and d3rlpy (``get_minari``, an offline learner,
+``EnvironmentEvaluator``). Every run is tiny: these tests check that the pieces
 fit, not that anything learns. The clients come with HeartPole's ``test`` extra; each is imported inside its
 tests, so the default suite, which deselects these slow tests, never loads them.
 
@@ -357,7 +358,7 @@ def test_minari_data_collector_records_infos_and_recovers_the_env(
 def test_a_heartpole_people_dataset_recovers_its_env_in_minari(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The command line's dataset, as Minari's docs load it: its env is the one it was recorded on (the 24
     people, their traits observed), with the data's spaces, for ``recover_environment`` and ``eval_env``. This
-    is what d3rlpy's ``get_minari`` and ``EnvironmentEvaluator`` rely on (d3rlpy itself pins Gymnasium 1.0)."""
+    is what d3rlpy's ``get_minari`` and ``EnvironmentEvaluator`` rely on (and the next test runs them)."""
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
     command = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--epsilon", "0.1", "--episodes",
                "5", "--people", "default", "--observe-traits"]  # fmt: skip
@@ -377,6 +378,26 @@ def test_a_heartpole_people_dataset_recovers_its_env_in_minari(tmp_path: Path, m
         action = int(np.argmax(obs @ weights))
         env.step(action)
         env.close()
+
+
+def test_d3rlpy_trains_and_evaluates_on_a_people_dataset_with_traits(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The issue's d3rlpy case, as d3rlpy's docs use a Minari dataset: ``get_minari`` (which recovers the env),
+    a discrete offline learner (CQL) and ``EnvironmentEvaluator`` on the recovered env. On a dataset without its
+    env this crashed with ``mat1 and mat2 shapes cannot be multiplied (1x6 and 11x256)``."""
+    d3rlpy = pytest.importorskip("d3rlpy")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    command = [sys.executable, "-m", "heartpole", "dataset", "--policy", "expert", "--epsilon", "0.1", "--episodes",
+               "3", "--people", "default", "--observe-traits"]  # fmt: skip
+    subprocess.run(command, check=True, capture_output=True)
+    dataset, env = d3rlpy.datasets.get_minari("heartpole/v0/expert-eps10-people-default-traits-v0")
+    assert env.observation_space.shape == dataset.episodes[0].observations.shape[1:] == (11,)
+    learner = d3rlpy.algos.DiscreteCQLConfig(batch_size=32).create(device="cpu:0")
+    evaluator = d3rlpy.metrics.EnvironmentEvaluator(env, n_trials=1)
+    learner.fit(dataset, n_steps=20, n_steps_per_epoch=20, evaluators={"environment": evaluator},
+                show_progress=False, save_interval=1000, experiment_name=str(tmp_path / "d3rlpy"))  # fmt: skip
+    assert np.isfinite(evaluator(learner, dataset))
 
 
 # ------------------------------------------------------------------------------ the v0 warning, as users silence it
