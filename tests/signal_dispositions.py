@@ -3,7 +3,7 @@
 A test run inherits its dispositions from whatever started it: ``nohup`` starts it with SIGHUP ignored, a background
 job of a non-interactive shell with SIGINT ignored, and an ignored signal stays ignored in every child (the
 ``heartpole`` command keeps an inherited SIG_IGN on purpose). A test that expects a signal to end a command sets the
-terminal's dispositions where it sends it: [`as_in_a_terminal`][] for a child (``preexec_fn``), the
+terminal's dispositions where it sends it: `as_in_a_terminal` for a child (``preexec_fn``), the
 ``terminal_signals`` fixture (tests/conftest.py) for the test process itself.
 """
 

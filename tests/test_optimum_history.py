@@ -11,12 +11,16 @@ from heartpole.optimum import optimum
 from heartpole.optimum.common import HISTORY_GAIN
 from heartpole.optimum.history import history_gain
 
+KAI = {"heart_attack_proclivity": 0.75, "decay_rate": 0.93, "sleep_half_hours": 19, "wake_alertness": (0.5, 1.1)}
+"""The default cohort's Kai, among those who gain the most from the history (benchmarks/history_gain.py)."""
+
 
 @pytest.mark.slow
-def test_what_the_history_gains_is_within_the_margin_the_regrets_are_widened_by() -> None:
+@pytest.mark.parametrize("env_kwargs", [{}, KAI], ids=["v0", "Kai"])
+def test_what_the_history_gains_is_within_the_margin_the_regrets_are_widened_by(env_kwargs: dict[str, object]) -> None:
     """The history-aware rule against ``optimal`` on paired episodes: its gain is not significantly above
     `HISTORY_GAIN`, and the optimum's own score on these episodes matches its exact expected score."""
-    solution = optimum("HeartPole-v0")
+    solution = optimum("HeartPole-v0", env_kwargs)
     measured = history_gain(solution, episodes=40_000, seed=1)
     assert measured.ci95[0] <= HISTORY_GAIN, measured
     assert solution.margin == solution.error_bound + HISTORY_GAIN
