@@ -370,9 +370,9 @@ def test_a_signal_never_cuts_a_c_extensions_initialisation() -> None:
 
 ARRIVING_TOGETHER = """
 import os
-from heartpole import files
+from heartpole import files, signals
 
-policy_handler = files._raise
+policy_handler = signals._raise
 
 
 def handler(signum, frame):  # the policy's, then which signal it takes for the first, on stdout
@@ -382,7 +382,7 @@ def handler(signum, frame):  # the policy's, then which signal it takes for the 
         os.write(1, b"%d\\n" % files.received_signal())
 
 
-files._raise = handler
+signals._raise = handler
 with files.signal_policy():
     print("ready", flush=True)
     while True:

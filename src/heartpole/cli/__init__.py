@@ -105,7 +105,7 @@ def _interrupted(command: list[str]) -> int:
 
 
 def _exit_on_signal(finished: list[int]) -> None:
-    """Outside [`heartpole.files.signal_policy`][heartpole.files.signal_policy] (before the command starts, and from
+    """Outside [`heartpole.files.signal_policy`][heartpole.signals.signal_policy] (before the command starts, and from
     its end until the process ends: Python shutting down, threads joined, modules torn down), SIGINT, SIGTERM and
     SIGHUP end the process at once: with the command's own exit code once it is in ``finished`` (the command is
     over, and its output is what that code says), else with 0 if its output is in place, else with 128 + the
