@@ -456,21 +456,6 @@ def _version() -> str:
     return __version__
 
 
-__all__ = [
-    "STANDARD_DATASETS",
-    "DatasetSpec",
-    "behaviour_name",
-    "default_dataset_id",
-    "load_local",
-    "load_trajectories",
-    "local_dataset_ids",
-    "local_root",
-    "record_dataset",
-    "record_standard",
-    "reference_scores",
-]
-
-
 def local_dataset_ids() -> list[str]:
     """The ids of the datasets in Minari's local folder (``MINARI_DATASETS_PATH``)."""
     root = _root()
@@ -504,3 +489,8 @@ def load_trajectories(target_id: str) -> Trajectories:
     """The episodes of the local dataset ``target_id`` as
     [`Trajectories`][heartpole.offline.trajectories.Trajectories]."""
     return Trajectories.from_dataset(load_local(target_id))
+
+
+__all__ = ["STANDARD_DATASETS", "DatasetSpec", "behaviour_name", "default_dataset_id", "load_local"]
+__all__ += ["load_trajectories", "local_dataset_ids", "local_root", "record_dataset", "record_standard"]
+__all__ += ["reference_scores"]
