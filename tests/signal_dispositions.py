@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import signal
 from collections.abc import Callable
+from pathlib import Path
 
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 """The signals that end a ``heartpole`` command."""
@@ -32,3 +33,12 @@ def ignoring(signum: int) -> Callable[[], None]:
         signal.signal(signum, signal.SIG_IGN)
 
     return preexec
+
+
+def pending(pid: int) -> int:
+    """The signals the kernel holds for ``pid``, not yet handed to it (a bit mask; 0 without /proc)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:
+        return 0
+    return sum(int(line.split()[1], 16) for line in status if line.startswith(("ShdPnd:", "SigPnd:")))

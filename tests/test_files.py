@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from heartpole import files
-from tests.signal_dispositions import as_in_a_terminal
+from tests.signal_dispositions import as_in_a_terminal, pending
 
 needs_signals = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="POSIX signals")
 # The signals these tests raise do what they do in a terminal, however the run was started (nohup, a background job).
@@ -388,15 +388,6 @@ with files.signal_policy():
     while True:
         sum(range(10**9))  # one long C call: no handler runs in Python until it returns
 """
-
-
-def pending(pid: int) -> int:
-    """The signals the kernel holds for ``pid``, not yet handed to it (a bit mask; 0 without /proc)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text().splitlines()
-    except OSError:
-        return 0
-    return sum(int(line.split()[1], 16) for line in status if line.startswith(("ShdPnd:", "SigPnd:")))
 
 
 @needs_signals

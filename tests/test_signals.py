@@ -28,7 +28,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.signal_dispositions import as_in_a_terminal, ignoring
+from tests.signal_dispositions import as_in_a_terminal, ignoring, pending
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="POSIX signals")
 
@@ -204,15 +204,6 @@ def prepare(case: Case, tmp_path: Path) -> dict[str, str]:
     work.mkdir()
     case.before(work)
     return snapshot(work)
-
-
-def pending(pid: int) -> int:
-    """The signals the kernel holds for ``pid``, not yet handed to it (a bit mask; 0 without /proc)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text().splitlines()
-    except OSError:
-        return 0
-    return sum(int(line.split()[1], 16) for line in status if line.startswith(("ShdPnd:", "SigPnd:")))
 
 
 def taken(process: subprocess.Popen[bytes]) -> None:

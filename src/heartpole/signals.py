@@ -222,9 +222,10 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT, SIGTERM and SIGHUP until the block is done, then deliver the first one that came.
 
     For the steps that must not stop halfway: moving files into place, removing a staging folder, shutting
-    down Ray. The signal then does what it would have done (with [`signal_policy`][heartpole.signals.signal_policy]: raise
-    [`Interrupted`][heartpole.signals.Interrupted]; without, Python's defaults: ``KeyboardInterrupt``, or the end of
-    the process). Only in the main thread (signals are handled there); elsewhere the block just runs."""
+    down Ray. The signal then does what it would have done (with
+    [`signal_policy`][heartpole.signals.signal_policy]: raise [`Interrupted`][heartpole.signals.Interrupted];
+    without, Python's defaults: ``KeyboardInterrupt``, or the end of the process). Only in the main thread
+    (signals are handled there); elsewhere the block just runs."""
     pending: list[int] = []
 
     def hold(signum: int, frame: FrameType | None) -> None:

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from heartpole.jax.traced import MODEL
-from heartpole.model import ALERTNESS, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT
+from heartpole.model import ALERTNESS, TIME_ELAPSED, TIME_SINCE_SLEPT
 from heartpole.policies import BUILTIN_POLICIES, load_policy
 from heartpole.policies.builtins import ConstantPolicy, ExpertPolicy, OptimalPolicy, RandomPolicy, ReferencePolicy
 from heartpole.policies.oracle import OraclePolicy
@@ -93,18 +93,11 @@ def _reference(policy: ReferencePolicy) -> Act:
 
 
 def _expert(policy: ExpertPolicy) -> Act:
-    """[`ExpertPolicy`][heartpole.policies.builtins.ExpertPolicy]'s rule: sleep when the coming half-hour earns less
-    than its rate; nap (where the variant has v1's nap) while sleepy early in the day."""
+    """[`ExpertPolicy`][heartpole.policies.builtins.ExpertPolicy]'s rule itself (`ExpertPolicy.rule`), on ``jax.numpy``:
+    sleep when the coming half-hour earns less than its rate; nap (where the variant has v1's nap) while sleepy."""
 
     def act(obs: jax.Array, left: jax.Array, person: jax.Array, key: jax.Array) -> jax.Array:
-        coming = MODEL.productivity(obs[:, ALERTNESS], obs[:, INTOXICATION])
-        actions = jnp.where(coming < policy.rate, policy.sleep, policy.nothing)
-        if policy.nap is not None:
-            nap = (obs[:, ALERTNESS] < policy.NAP_BELOW_ALERTNESS) & (
-                obs[:, TIME_SINCE_SLEPT] < policy.NAP_WITHIN_HALF_HOURS_AWAKE
-            )
-            actions = jnp.where(nap, policy.nap, actions)
-        return actions.astype(jnp.int32)
+        return policy.rule(obs, MODEL.productivity, jnp.where).astype(jnp.int32)
 
     return act
 

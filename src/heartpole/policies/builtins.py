@@ -169,15 +169,19 @@ class ExpertPolicy:
         self.rate = known if rate is None else float(rate)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        obs = observation_batch(obs)
-        coming = productivity(obs[:, ALERTNESS], obs[:, INTOXICATION])
-        actions = np.where(coming < self.rate, self.sleep, self.nothing)
+        return self.rule(observation_batch(obs), productivity, np.where).astype(np.int64)
+
+    def rule(self, obs: Any, work: Callable[[Any, Any], Any], where: Callable[[Any, Any, Any], Any]) -> Any:
+        """The rule on a batch of observations with a backend's ``productivity`` and ``where`` (NumPy's for
+        ``__call__``; ``jax.numpy``'s in [`heartpole.jax.policies`][heartpole.jax.policies])."""
+        coming = work(obs[:, ALERTNESS], obs[:, INTOXICATION])
+        actions = where(coming < self.rate, self.sleep, self.nothing)
         if self.nap is not None:
             nap = (obs[:, ALERTNESS] < self.NAP_BELOW_ALERTNESS) & (
                 obs[:, TIME_SINCE_SLEPT] < self.NAP_WITHIN_HALF_HOURS_AWAKE
             )
-            actions = np.where(nap, self.nap, actions)
-        return actions.astype(np.int64)
+            actions = where(nap, self.nap, actions)
+        return actions
 
 
 class OptimalPolicy:
