@@ -7,16 +7,19 @@
 #   train    a tiny heartpole train
 #   ray      a tiny heartpole train --ray over two seeds
 #   docs     the documentation site's strict build (scripts/build_docs.sh)
+# and one client that cannot share the dev venv:
+#   d3rlpy   the offline extra with d3rlpy 2.8.0 (2.8.1 pins gymnasium==1.0.0; its gym dependency prints a notice
+#            into every process that imports Stable-Baselines3): tests/test_clients.py's d3rlpy case
 # The full dev venv hides a missing dependency (pillow came with matplotlib for Minari's HDF5 storage, say).
 # PyTorch's CPU build goes in first where Stable-Baselines3 needs it (train, ray), as in scripts/setup.sh.
-# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all six; the installs run side by
+# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all seven; the installs run side by
 # side). CI builds the venvs while the slow tests run (--setup-only), then runs the commands.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 setup_only=0
 if [ "${1:-}" = "--setup-only" ]; then setup_only=1; shift; fi
 extras=("$@")
-[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax train ray docs)
+[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax train ray docs d3rlpy)
 root=.venv-extras
 stamp=$(sha256sum pyproject.toml | cut -d' ' -f1)
 
@@ -25,8 +28,11 @@ install() {  # a fresh venv with HeartPole and the one extra; its log in $root/<
   if [ -f "$venv/pyproject.sha256" ] && [ "$(cat "$venv/pyproject.sha256")" = "$stamp" ]; then return 0; fi
   rm -rf "$venv"
   python3 -m venv "$venv"
-  case $extra in train | ray) "$venv/bin/python" -m pip install -q torch==2.13.0 ;; esac
-  "$venv/bin/python" -m pip install -q -e ".[$extra]"
+  case $extra in train | ray | d3rlpy) "$venv/bin/python" -m pip install -q torch==2.13.0 ;; esac
+  case $extra in
+    d3rlpy) "$venv/bin/python" -m pip install -q -e ".[offline]" d3rlpy==2.8.0 "pytest>=7" ;;
+    *) "$venv/bin/python" -m pip install -q -e ".[$extra]" ;;
+  esac
   echo "$stamp" > "$venv/pyproject.sha256"
 }
 
@@ -34,8 +40,8 @@ mkdir -p "$root"
 pids=()
 for extra in "${extras[@]}"; do
   case $extra in
-    offline | plot | jax | train | ray | docs) ;;
-    *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, train, ray, docs)" >&2; exit 2 ;;
+    offline | plot | jax | train | ray | docs | d3rlpy) ;;
+    *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, train, ray, docs, d3rlpy)" >&2; exit 2 ;;
   esac
   install "$extra" >"$root/$extra.log" 2>&1 &
   pids+=($!)
@@ -85,6 +91,7 @@ assert obs.shape == env.observation_space(params).shape'
       "$bin/heartpole" train --ray --seeds 0-1 --timesteps 2000 --n-envs 2 --eval-episodes 10 --out "$work/ray"
       ;;
     docs) MKDOCS=$bin/mkdocs bash scripts/build_docs.sh 2>&1 | tail -1 ;;
+    d3rlpy) "$bin/python" -m pytest -q -p no:cacheprovider tests/test_clients.py -m slow -k d3rlpy ;;
   esac
   echo "test_extras: heartpole[$extra] alone: its command ran ($((SECONDS - start)) s)"
 done
