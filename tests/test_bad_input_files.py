@@ -239,6 +239,24 @@ def test_a_signal_after_the_output_is_in_place_is_a_success(
     assert len(list(out.glob("*.png"))) == 5
 
 
+def test_a_signal_after_a_dataset_is_in_place_is_a_success(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``heartpole dataset`` announces its dataset folder: a signal as it says ``recorded ...`` ends it with 0."""
+    pytest.importorskip("minari")
+    import heartpole.cli.offline as offline_command
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        signal.raise_signal(signal.SIGTERM)
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    monkeypatch.setattr(offline_command, "print", interrupted, raising=False)
+    code, _, err = run(capsys, "dataset", "--policy", "random", "--episodes", "2")
+    assert code == 0, err
+    assert "SIGTERM arrived after the output was written" in err
+    assert (tmp_path / "minari" / "heartpole" / "v0" / "random-v0" / "data" / "metadata.json").is_file()
+
+
 def test_a_signal_before_the_output_is_in_place_is_still_128_plus_n(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

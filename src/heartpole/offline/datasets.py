@@ -382,8 +382,9 @@ def _exists(target_id: str) -> bool:
 def _write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:
     """Run each dataset's ``create`` with Minari pointed at a hidden scratch folder in its datasets folder,
     then move the datasets into place together, signals deferred ([`heartpole.files`][heartpole.files]): an error or an
-    interruption leaves Minari's folder as it was."""
+    interruption leaves Minari's folder as it was; once they are all in place, a command ends as a success."""
     root = _root()
+    paths.expect_output(*(root / target_id for target_id in creates))
     with files.scratch_folder(root, "heartpole-datasets") as scratch:
         with _minari_root(scratch):
             with warnings.catch_warnings():
