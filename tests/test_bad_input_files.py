@@ -239,6 +239,7 @@ def test_a_signal_after_the_output_is_in_place_is_a_success(
     assert len(list(out.glob("*.png"))) == 5
 
 
+@pytest.mark.slow  # records a Minari dataset: about 9 s
 def test_a_signal_after_a_dataset_is_in_place_is_a_success(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
