@@ -82,6 +82,7 @@ def test_offline_commands_list_the_policies_their_help_lists(  # B10
     assert "random, nothing, coffee, reference, expert)" in " ".join(capsys.readouterr().out.split())
 
 
+@pytest.mark.slow  # two evaluations and an ope run: about 15 s
 def test_a_policy_against_itself_shows_no_negative_zero(capsys: pytest.CaptureFixture[str]) -> None:  # B11
     code, out, err = run(capsys, "compare", "--policy", "expert", "--policy", "expert", "--episodes", "4")
     assert code == 0, err
@@ -118,6 +119,7 @@ def test_plot_training_warns_of_points_it_cannot_draw(  # B16
     assert (tmp_path / "learning_curve.png").is_file()
 
 
+@pytest.mark.slow  # records a dataset and estimates: about 15 s
 def test_ope_warns_when_the_data_never_took_the_targets_actions(  # B19
     capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

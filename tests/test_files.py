@@ -390,6 +390,7 @@ with files.signal_policy():
 """
 
 
+@pytest.mark.slow  # a child in a long C call: 3 s idle, 30 s and more on a busy machine
 @needs_signals
 def test_the_first_signal_to_arrive_decides_though_python_handles_sighup_first() -> None:
     """SIGTERM, SIGINT and SIGHUP, each handed to the process in turn while its main thread is in one long C call:

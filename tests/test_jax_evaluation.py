@@ -93,6 +93,7 @@ def test_compare_pairs_a_jax_result_with_a_numpy_one_on_common_random_numbers() 
     assert width(mixed.expected_ci95) < 1.5 * width(numpy_pair.expected_ci95)
 
 
+@pytest.mark.slow  # five compiled rollouts: about 5-10 s
 def test_a_batch_of_policies_is_each_evaluated_on_the_same_episodes() -> None:
     """evaluate_batch over four thresholds equals evaluate of each threshold on its own."""
     thresholds = jnp.asarray([0.2, 0.3, 0.33, 0.4], jnp.float32)
