@@ -258,6 +258,34 @@ def test_a_signal_after_a_dataset_is_in_place_is_a_success(
     assert (tmp_path / "minari" / "heartpole" / "v0" / "random-v0" / "data" / "metadata.json").is_file()
 
 
+@pytest.mark.slow  # imports Ray: several seconds
+def test_a_signal_after_a_tune_search_is_in_place_is_a_success(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``heartpole tune`` announces --out: a signal as it prints its results ends it with 0, not with "interrupted;
+    continue with --resume" and 128 + n (the search is complete and in place)."""
+    pytest.importorskip("ray")
+    import heartpole.cli.tune as tune_command
+    from heartpole import files, scale
+
+    def search(settings: object, folder: Path, **options: object) -> dict[str, object]:
+        with files.folder_in_place(folder, keep=lambda path: True):
+            (folder / "trials.csv").write_text("trial\n")
+        return {"trials": 1}
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        signal.raise_signal(signal.SIGTERM)
+
+    monkeypatch.setattr(scale, "tune_search", search)
+    monkeypatch.setattr(scale, "can_resume", lambda folder: True)
+    monkeypatch.setattr(tune_command, "print", interrupted, raising=False)
+    out = tmp_path / "tune"
+    code, _, err = run(capsys, "tune", "--trials", "1", "--json", "--out", str(out))
+    assert code == 0, err
+    assert "SIGTERM arrived after the output was written" in err
+    assert (out / "trials.csv").is_file()
+
+
 def test_a_signal_before_the_output_is_in_place_is_still_128_plus_n(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -13,7 +13,7 @@ import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from heartpole import files
+from heartpole import files, paths
 from heartpole.cli.common import CommandError, Subparsers, format_table, not_empty, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
@@ -135,6 +135,7 @@ def run_tune(args: argparse.Namespace) -> int:
         scale.prepare_search_folder(out, args.resume, args.force)
     except ValueError as error:
         raise CommandError(str(error)) from None
+    paths.expect_output(out)  # once the search is complete in --out, a signal ends the command as a success
     if not args.json:
         print(_announce(scale.read_settings(out) if args.resume else settings, out, args.resume), flush=True)
     try:
@@ -145,7 +146,7 @@ def run_tune(args: argparse.Namespace) -> int:
             print(failure.line(), file=sys.stderr)
         raise CommandError(f"every trial failed; see {out / scale.TRIALS_FILE}") from None
     except KeyboardInterrupt:  # Ctrl-C, SIGTERM or SIGHUP: --out holds the search to resume, or what it held
-        if args.force or not scale.can_resume(out):  # with --force, the earlier search is back as it was
+        if args.force or paths.outputs_placed() or not scale.can_resume(out):  # --force: the earlier search is back
             raise
         print(f"heartpole tune: interrupted; continue with: heartpole tune --resume --out {out}", file=sys.stderr)
         return files.exit_code()
