@@ -22,6 +22,10 @@ import pytest
 
 from heartpole import files, paths
 from heartpole.cli import main
+from tests.signal_dispositions import as_in_a_terminal
+
+# Tests here raise SIGTERM and SIGHUP in this process: at their terminal defaults whatever started the run (nohup).
+pytestmark = pytest.mark.usefixtures("terminal_signals")
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -308,7 +312,9 @@ def test_a_signal_as_the_command_ends_is_a_success(tmp_path: Path, signum: int) 
     pytest.importorskip("matplotlib")
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     command = [sys.executable, "-m", "heartpole", "plot", "model", "--out", str(tmp_path / "figures")]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, preexec_fn=as_in_a_terminal
+    )
     try:
         assert process.stdout is not None
         first = process.stdout.readline()
