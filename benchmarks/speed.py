@@ -320,7 +320,8 @@ def anatomy(env_id: str, n: int, anchor: float) -> None:
     whole = best_time(lambda: env.step(actions))
 
     def loop() -> None:
-        kernel.step_envs(env._envs, kernel.new_results(n), indices, env._rng, dynamics.packed, dynamics.layout)
+        tables = (dynamics.packed, dynamics.layout, dynamics.selection)
+        kernel.step_envs(env._envs, kernel.new_results(n), indices, env._rng, *tables)
 
     compiled, copy = best_time(loop), best_time(lambda: env._envs.copy())
     print(

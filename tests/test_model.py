@@ -148,7 +148,7 @@ def test_a_helper_called_from_the_step_is_compiled_without_being_listed(tmp_path
     NameError: name '_half' is not defined.)"""
     from numba import njit
 
-    from heartpole import kernel
+    from heartpole import kernel, lanes
 
     def add_half(source: str) -> str:
         old = "    worked = productivity(state[ALERTNESS], state[INTOXICATION], calm)\n"
@@ -160,7 +160,7 @@ def test_a_helper_called_from_the_step_is_compiled_without_being_listed(tmp_path
     changed = scratch_model(tmp_path, monkeypatch, "model_with_a_helper", add_half)
     assert "_half" in changed.FUNCTIONS and "_half" not in model.FUNCTIONS
     compiled = changed.rebind(
-        {"exp": kernel.exp32, "where": kernel.where, "replace": kernel.tuple_setitem}, np.float32, njit
+        {"exp": lanes.exp32, "where": lanes.where, "replace": kernel.tuple_setitem}, np.float32, njit
     )
     f32 = np.float32
     state = (f32(1.1), f32(0.2), f32(0.0), f32(3.0), f32(3.0), f32(2.5), f32(0.4))

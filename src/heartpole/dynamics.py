@@ -33,6 +33,8 @@ class Dynamics:
         tables: the variables' and parameters' [`StepTables`][heartpole.model.StepTables].
         packed: the same as one float32 array, as [`step_envs`][heartpole.kernel.step_envs] takes them.
         layout: the variant's shape, as [`layout`][heartpole.kernel.layout] gives it to compiled code.
+        selection: which numbers of the action rows differ between actions, as compiled code takes them
+            ([`selection_for`][heartpole.kernel.selection_for]).
 
     Raises:
         ValueError: a definition that is not an Action or Variable; no action; duplicate names; variables that
@@ -57,6 +59,7 @@ class Dynamics:
         _check_float32(self.effects, self.tables)
         self.packed = kernel.pack(self.effects, self.tables)
         self.layout = kernel.layout(len(self.variables), len(self.tables.rest_offsets), len(self.actions))
+        self.selection = kernel.selection_for(self.packed, len(self.actions))
 
     def action_index(self, name: str) -> int:
         """The index of the action called ``name``."""

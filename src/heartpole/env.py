@@ -357,7 +357,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         if envs is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
         if self._persons is None:  # the arguments spelled out: a call with *arguments costs 40 ns more
-            step = self._step_kernel(envs, index, self._rng, self.dynamics.packed, self.dynamics.layout)
+            dynamics = self.dynamics
+            step = self._step_kernel(envs, index, self._rng, dynamics.packed, dynamics.layout, dynamics.selection)
         else:
             step = self._step_kernel(envs, index, *self._kernel_arguments)
         reward, worked, risk, attack, new_score = step
@@ -410,11 +411,13 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         self._plain = self._observer.plain and self.people is None
         step: Any
         arguments: tuple[Any, ...]
+        dynamics = self.dynamics
         if self._persons is None:
-            step, arguments = kernel.step_one, (self._rng, self.dynamics.packed, self.dynamics.layout)
+            step, arguments = kernel.step_one, (self._rng, dynamics.packed, dynamics.layout, dynamics.selection)
         else:
             flat, overlay = self._persons.flat, self._persons.overlay
-            step, arguments = person_kernel.step_one, (self._rng, flat, self.dynamics.layout, self._cells, overlay)
+            step = person_kernel.step_one
+            arguments = (self._rng, flat, dynamics.layout, self._cells, overlay, dynamics.selection)
         self._kernel_arguments = arguments
         if self._envs is None:
             self._step_kernel = step

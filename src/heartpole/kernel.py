@@ -1,15 +1,17 @@
 """The HeartPole step compiled with numba: [`step`][heartpole.model.step] over many people at once.
 
 No formula lives here. [`heartpole.model`][heartpole.model]'s functions are compiled *as written*, with three
-bindings of this module's: a float32 ``exp`` that LLVM can vectorise, ``where`` as a branch-free
-select and ``replace`` as numba's in-register tuple update. Their float literals become float32
-constants, so that the whole step computes in float32 (a Python float would make numba compute in
-float64, at half the vector width). What this module adds is the machinery around the step:
+bindings: a float32 ``exp`` that LLVM can vectorise and ``where`` as a branch-free select
+([`heartpole.lanes`][heartpole.lanes]), and ``replace`` as numba's in-register tuple update. Their float
+literals become float32 constants, so that the whole step computes in float32 (a Python float would make
+numba compute in float64, at half the vector width). What this module adds is the machinery around the step:
 
-* a counter-based random number generator: the ``j``-th uniform of an env's ``c``-th draw is a keyed
-  hash of ``(key, c, j)``. An env's state is its key and its counter, so copies and pickles continue
-  exactly, and two envs (or two policies evaluated alike) with the same key see the same draws.
-* the tables packed in one array, laid out from the model's own definitions of them;
+* [`heartpole.rng`][heartpole.rng]'s counter-based generator, compiled: the ``j``-th uniform of an env's
+  ``c``-th draw is a keyed hash of ``(key, c, j)``. An env's state is its key and its counter, so copies and
+  pickles continue exactly, and two envs (or two policies evaluated alike) with the same key see the same draws.
+* the tables packed in one array, laid out from the model's own definitions of them, and each env's action
+  effects selected from them with a mask only where the actions' numbers differ
+  ([`selection_for`][heartpole.kernel.selection_for]);
 * [`step_envs`][heartpole.kernel.step_envs] and [`reset_envs`][heartpole.kernel.reset_envs], the loops over
   envs; the single env runs one env of them ([`step_one`][heartpole.kernel.step_one], the same loop), so the
   two agree bit for bit.
@@ -20,6 +22,7 @@ everything runs as plain Python.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -29,14 +32,15 @@ from numba import njit
 from numba.core import cgutils
 from numba.core import types as nbtypes
 from numba.cpython.unsafe.tuple import tuple_setitem as _tuple_setitem
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 from numba.np.numpy_support import carray as _carray
 from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
-from heartpole import jit, model
+from heartpole import jit, lanes, model
 from heartpole import rng as random_numbers  # the module; ``rng`` names envs' generator states here
 from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
-from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
+from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on, one, wide_vectors
+from heartpole.lanes import F32, U32, U64, add32, exp32, mul32, shr32, where, xor32
 
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
 # (float32 scalars, tuples of any length, arrays), which no single annotation describes. numba's stubs type an
@@ -46,52 +50,9 @@ tuple_setitem: Any = _tuple_setitem
 to_fixed_tuple: Any = _to_fixed_tuple
 carray: Any = _carray
 alloca_once: Any = cgutils.alloca_once
-
-
-F32, U64 = np.float32, np.uint64
-LOG2E, LN2_HIGH, LN2_LOW = F32(1.4426950408889634), F32(0.693359375), F32(-2.12194440e-4)
-EXP_LOW, EXP_HIGH = F32(-87.0), F32(87.0)
-
-
-@intrinsic
-def _int32_as_float32_intrinsic(typingctx: Any, bits: Any) -> Any:
-    """The float32 whose IEEE-754 bits are the int32 ``bits`` (a bit cast, no conversion)."""
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return builder.bitcast(args[0], context.get_value_type(nbtypes.float32))
-
-    return nbtypes.float32(nbtypes.int32), codegen
-
-
-_int32_as_float32: Any = _int32_as_float32_intrinsic
-
-
-@njit(**JIT, **INLINE)
-def exp32(x: Any) -> Any:
-    """``e ** x`` in float32 without branches or calls, so that LLVM vectorises it.
-
-    ``x`` is clamped to [-87, 87], where float32 ``exp`` and ``1 / (1 + exp)`` are finite and normal (the
-    formulas need nothing beyond: their sigmoids are 0 or 1 there to float32 precision; past 87, ``1 / (1 +
-    exp)`` would be a subnormal, which CPUs compute many times slower). Then ``e ** x = 2 ** n * e ** r`` with
-    ``|r| <= ln(2) / 2``; ``e ** r`` is its Taylor polynomial to degree 6 (relative error below 2e-7).
-    """
-    x = min(max(F32(x), EXP_LOW), EXP_HIGH)
-    n = np.floor(x * LOG2E + F32(0.5))
-    r = x - n * LN2_HIGH - n * LN2_LOW
-    p = F32(1.0 / 720.0)
-    p = p * r + F32(1.0 / 120.0)
-    p = p * r + F32(1.0 / 24.0)
-    p = p * r + F32(1.0 / 6.0)
-    p = p * r + F32(0.5)
-    p = p * r + F32(1.0)
-    p = p * r + F32(1.0)
-    return p * _int32_as_float32((np.int32(n) + np.int32(127)) << np.int32(23))
-
-
-@njit(**JIT, **INLINE)
-def where(condition: Any, a: Any, b: Any) -> Any:
-    """``a if condition else b``; LLVM turns it into a select, not a branch."""
-    return a if condition else b
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]  # intrinsics run only in compiled code
+    tuple_setitem = model.replace
+    to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
 
 
 @njit(**JIT, **INLINE)
@@ -103,39 +64,11 @@ def stored(variable: Any, x: Any) -> Any:
     return x if _kept_by_the_step(variable) else where(abs(x) < SMALLEST_NORMAL, F32(0.0), x)
 
 
-# ---------------------------------------------------------------------------------------------------------
-# The random numbers are heartpole.rng's, compiled with these four 32-bit operations: LLVM's own, since numba
-# would widen uint32 arithmetic to 64 bits (half the vector lanes).
-def _uint32_operation(name: str) -> Any:
-    @intrinsic
-    def operation(typingctx: Any, a: Any, b: Any) -> Any:
-        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-            return getattr(builder, name)(args[0], args[1])
-
-        return nbtypes.uint32(nbtypes.uint32, nbtypes.uint32), codegen
-
-    operation.__doc__ = f"``a {name} b`` on 32-bit unsigned integers, wrapping around."
-    return operation
-
-
-mul32, add32, xor32, shr32 = (_uint32_operation(name) for name in ("mul", "add", "xor", "lshr"))
-
-# Intrinsics run only in compiled code: plain Python stands in for them (numba.config has no static type).
-if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
-    _int32_as_float32 = lambda bits: np.int32(bits).view(np.float32)  # noqa: E731
-    mul32 = lambda a, b: np.uint32((int(a) * int(b)) & 0xFFFFFFFF)  # noqa: E731
-    add32 = lambda a, b: np.uint32((int(a) + int(b)) & 0xFFFFFFFF)  # noqa: E731
-    xor32 = lambda a, b: np.uint32(int(a) ^ int(b))  # noqa: E731
-    shr32 = lambda a, b: np.uint32(int(a) >> int(b))  # noqa: E731
-    tuple_setitem = model.replace  # noqa: F811
-    to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
-
 compiled = model.rebind({"exp": exp32, "where": where, "replace": tuple_setitem}, F32, njit(**JIT, **INLINE))
 """[`heartpole.model`][heartpole.model]'s functions, compiled: ``compiled.step`` is the step every env runs. Float
 literals become float32 constants: numba would compute in float64 otherwise, at half the vector width."""
 _step, _initial_state, _kept_by_the_step = compiled.step, compiled.initial_state, compiled.kept_by_the_step
 
-U32 = np.uint32
 SMALLEST_NORMAL = F32(np.finfo(np.float32).tiny)
 KEY_LOW, KEY_HIGH, COUNTER = random_numbers.KEY_LOW, random_numbers.KEY_HIGH, random_numbers.COUNTER
 generator_states = random_numbers.generator_states
@@ -274,23 +207,97 @@ def _at(values: Any, index: Any) -> Any:
     return values[index]
 
 
-@njit(**JIT, **INLINE)
-def _chosen(source: Any, column: Any) -> Any:
-    """The ``column`` of env's action's row of the action table, selected with masks (no gather).
-    ``source`` is ``(table, width, actions, action)``: the table, its row width, the layout's actions."""
-    table, width, actions, action = source
-    value = table[column]
-    for k in range(1, len(actions)):
-        value = where(action == k, table[U64(k) * width + column], value)
-    return value
-
-
 read_effects = reader(model.ActionEffects, EFFECTS, _at)
 """The [`ActionEffects`][heartpole.model.ActionEffects] in a row of `pack`'s array (or the action table)."""
-chosen_effects = reader(model.ActionEffects, EFFECTS, _chosen)
-"""The [`ActionEffects`][heartpole.model.ActionEffects] of an env's action, selected with masks (`_chosen`)."""
 read_tables = reader(model.StepTables, TABLES, _at)
 """The [`StepTables`][heartpole.model.StepTables] in [`pack`][heartpole.kernel.pack]'s last row."""
+
+PER_POSITIONS: JitOptions = {**JIT, "cache": False}
+"""The options of the small functions made per set of positions (closures over them): never cached themselves,
+they are inlined into the loops, which are."""
+
+
+def setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
+    """A compiled ``set(values, value)``: the ``table`` ``values`` with number ``column`` of its packed row
+    (`pack_row`) set to ``value``. Written out field by field, so that the indices are constants of the code
+    (numba's ``tuple_setitem`` takes tuples of one type only)."""
+    arguments = [f"values[{j}]" for j in range(len(table._fields))]  # type: ignore[attr-defined]
+    k, v = field_at(fields, num_variables, column)
+    arguments[k] = "value" if v is None else f"tuple_setitem(values[{k}], {v}, value)"
+    source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
+    namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
+    exec(source, namespace)  # code made here from field indices, nothing from outside
+    return njit(**PER_POSITIONS, **INLINE)(namespace["set_number"])
+
+
+def getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
+    """A compiled ``get(values)``: number ``column`` of the ``table`` ``values``' packed row (`pack_row`)."""
+    k, v = field_at(fields, num_variables, column)
+    if v is None:
+        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k])
+    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
+
+
+def selection_for(packed: np.ndarray, num_actions: int) -> np.ndarray:
+    """The loops' ``selection`` for [`pack`][heartpole.kernel.pack]'s array ``packed``: an empty array whose
+    structured dtype names, as fields ``p{position}``, the numbers of its action rows (raveled) that differ, bit
+    for bit, from the first action's number in the same column (and a field ``first``, so that it has one).
+
+    Being part of the argument's *type*, the positions are constants of the compiled loop, and key numba's disk
+    cache: the loop selects an env's action effects with one mask for each position (`select`), and none where
+    every action has the same number (v0: 11 masks, where a mask per action and number would take 33)."""
+    bits = np.ascontiguousarray(packed[:num_actions], dtype=np.float32).view(np.uint32)
+    positions = np.flatnonzero((bits[1:] != bits[0]).ravel()) + bits.shape[1]
+    names = ["first"] + [f"p{int(p)}" for p in positions]
+    fields = {"names": names, "formats": [np.uint8] * len(names), "offsets": [0] * len(names)}
+    return np.empty(0, dtype=np.dtype(fields))  # type: ignore[call-overload]
+
+
+@functools.lru_cache(maxsize=256)
+def _selector(positions: tuple[int, ...], num_variables: int) -> Any:
+    """A compiled ``select(effects, table, action)``: the first action's ``effects`` with, at each of
+    ``positions`` of the action ``table`` (rows of `row_width`), the number of the action it belongs to where that
+    is ``action``. Written out as one line per position, its indices constants of the code (a chain of nested
+    functions would make numba's names of inlined variables grow with each link, until they collide)."""
+    namespace: dict[str, Any] = {"where": where}
+    lines = ["def select_all(effects, table, action):"]
+    for j, position in enumerate(positions):
+        owner, column = divmod(position, row_width(num_variables))
+        namespace[f"set_{j}"] = setter(model.ActionEffects, EFFECTS, num_variables, column)
+        namespace[f"get_{j}"] = getter(model.ActionEffects, EFFECTS, num_variables, column)
+        namespace[f"at_{j}"] = U64(position)
+        lines.append(f"    effects = set_{j}(effects, where(action == {owner}, table[at_{j}], get_{j}(effects)))")
+    lines.append("    return effects")
+    exec("\n".join(lines) + "\n", namespace)  # code made here from table positions, nothing from outside
+    return njit(**PER_POSITIONS, **INLINE)(namespace["select_all"])
+
+
+def _positions(dtype: Any) -> tuple[int, ...]:
+    """The positions a ``selection``'s ``dtype`` names (`selection_for`), in order: NumPy's and numba's alike."""
+    return tuple(sorted(int(name[1:]) for name in dtype.fields if name != "first"))
+
+
+def _selector_for(dtype: Any, num_variables: int) -> Any:
+    """`_selector` for a ``selection``'s ``dtype``."""
+    return _selector(_positions(dtype), num_variables)
+
+
+def select(effects: Any, table: Any, action: Any, selection: Any) -> Any:
+    """The effects of ``action``: the first action's ``effects`` with the numbers `selection_for` names taken from
+    the action ``table`` where they are ``action``'s. This is the plain Python of ``NUMBA_DISABLE_JIT``; compiled
+    code builds the chain from ``selection``'s type (`_select`)."""
+    return _selector_for(selection.dtype, len(effects.effect_low))(effects, table, action)
+
+
+@overload(select, inline="always")
+def _select(effects: Any, table: Any, action: Any, selection: Any) -> Any:
+    """`select` in compiled code: its chain built when compiling, from the type of ``selection``."""
+    chain = _selector_for(selection.dtype, len(effects[0]))
+
+    def select_compiled(effects: Any, table: Any, action: Any, selection: Any) -> Any:
+        return chain(effects, table, action)
+
+    return select_compiled
 
 
 @njit(**JIT)
@@ -352,11 +359,41 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _action_table = lambda packed, layout, zeros: np.ascontiguousarray(packed[:-1]).ravel()  # type: ignore[assignment]  # noqa: E731
 
 
-SELECTED_ACTIONS = 4
-"""Up to this many actions, the loop over envs selects each env's action effects with masks; with more, it
-reads them from the action table with gathers (the masks grow with the actions, and outgrow the registers).
-At 16,384 envs on our Xeon: v0 about 78 us a step with masks, 86 us with gathers; v1 (8 actions) 125 us
-with gathers, 5,000 us with masks (LLVM gives up vectorising)."""
+SELECTED_NUMBERS = 64
+"""Up to this many numbers named by the selection (`selection_for`), the loop over envs selects each env's action
+effects with masks (`select`); with more, it reads them from the action table with gathers (masks outgrow the
+registers). At 16,384 envs on the project's 2-core AMD EPYC: v0 (11 numbers) 58 us a step with masks, v1 (8
+actions, 33 numbers) 100 us with masks, 165 us with gathers. A mask per action and number (v1: about 200),
+as before the selection, made LLVM give up vectorising (5,000 us)."""
+
+
+def masked(selection: Any) -> bool:
+    """Whether the loop selects the action effects of ``selection`` with masks (`SELECTED_NUMBERS`). Plain Python;
+    compiled code knows the answer when compiling (`_masked`), so only one way is compiled into the loop."""
+    return len(_positions(selection.dtype)) <= SELECTED_NUMBERS
+
+
+@overload(masked, inline="always")
+def _masked(selection: Any) -> Any:
+    """`masked` in compiled code: a constant of the code, from the type of ``selection``."""
+    answer = len(_positions(selection.dtype)) <= SELECTED_NUMBERS
+
+    def masked_compiled(selection: Any) -> bool:
+        return answer
+
+    return masked_compiled
+
+
+@njit(**JIT)
+def convert_actions(actions: Any, count: Any, out: Any) -> bool:
+    """Whether every one of ``actions`` (unsigned: a view of signed ones makes negatives huge) is below ``count``,
+    converting them into ``out`` as `ACTION_DTYPE` meanwhile: one pass, where NumPy's check and conversion take
+    two. ``out`` is of no use where they are not."""
+    largest = U64(0)
+    for i in range(actions.shape[0]):
+        largest = max(largest, U64(actions[i]))
+        out[i] = ACTION_DTYPE(actions[i])
+    return largest < U64(count)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -375,11 +412,12 @@ def env_state(envs: Any, rng: Any, i: Any, zeros: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def action_effects(table: Any, width: Any, layout: Any, action: Any, zeros: Any) -> Any:
+def action_effects(table: Any, width: Any, layout: Any, action: Any, zeros: Any, selection: Any) -> Any:
     """The effects of ``action`` from the action rows at the start of ``table`` (rows of ``width``): selected
-    with masks up to `SELECTED_ACTIONS` actions, gathered beyond (known when compiling: one branch stays)."""
-    if len(layout[2]) <= SELECTED_ACTIONS:
-        return chosen_effects((table, width, layout[2], action), U64(0), zeros, ())
+    with masks (`select`) up to `SELECTED_NUMBERS` numbers, gathered beyond (known when compiling: one branch
+    stays)."""
+    if masked(selection):
+        return select(read_effects(table, U64(0), zeros, ()), table, action, selection)
     return read_effects(table, U64(action) * width, zeros, ())
 
 
@@ -399,7 +437,7 @@ def store_env(envs: Any, results: Any, rng: Any, i: Any, outcome: Any) -> None:
 
 
 @njit(**JIT, **INLINE)
-def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     wide_vectors()
     zeros, tables = _unpack(packed, layout)
@@ -407,29 +445,30 @@ def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, lay
     for index in range(actions.shape[0]):
         i = U64(index)
         state, uniforms = env_state(envs, rng, i, zeros)
-        effects = action_effects(table, width, layout, actions[i], zeros)
+        effects = action_effects(table, width, layout, actions[i], zeros, selection)
         store_env(envs, results, rng, i, _step(state, effects, uniforms, tables))
 
 
 @njit(**JIT)
-def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any) -> None:
+def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
     """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
     ``results[k][i]``, a tuple of arrays in `OUTPUTS` order (`new_results`).
 
     The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
-    ``packed`` and ``layout`` are [`pack`][heartpole.kernel.pack]'s and [`layout`][heartpole.kernel.layout]'s.
+    ``packed``, ``layout`` and ``selection`` are [`pack`][heartpole.kernel.pack]'s,
+    [`layout`][heartpole.kernel.layout]'s and [`selection_for`][heartpole.kernel.selection_for]'s.
     """
-    _step_envs(envs, results, actions, rng, packed, layout)
+    _step_envs(envs, results, actions, rng, packed, layout, selection)
 
 
 @njit(**JIT)
-def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:
+def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> Any:
     """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
     ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
     loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
     results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
-    _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout)
+    _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 
@@ -451,11 +490,12 @@ def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> Non
 cache_keyed_on(model, step_envs, step_one, reset_envs)
 cache_keyed_on(jit, step_envs, step_one, reset_envs)
 cache_keyed_on(random_numbers, step_envs, step_one, reset_envs)
+cache_keyed_on(lanes, step_envs, step_one, reset_envs)
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one
 
-    def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any) -> Any:  # type: ignore[misc]  # noqa: F811
+    def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> Any:  # type: ignore[misc]  # noqa: F811
         """[`step_one`][heartpole.kernel.step_one] run as plain Python, its results as Python numbers."""
-        reward, worked, risk, attack, new_score = _python_step_one(envs, action, rng, packed, layout)
+        reward, worked, risk, attack, new_score = _python_step_one(envs, action, rng, packed, layout, selection)
         return float(reward), float(worked), float(risk), bool(attack), float(new_score)

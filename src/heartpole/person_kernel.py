@@ -35,15 +35,13 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic, overload
 
 from heartpole import jit, kernel, model
-from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on, one, wide_vectors
-from heartpole.kernel import F32, U32, U64, add32, to_fixed_tuple, tuple_setitem, where
+from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
+from heartpole.kernel import to_fixed_tuple
+from heartpole.lanes import F32, U32, U64, add32, where
 
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
 _step, _initial_state = kernel.compiled.step, kernel.compiled.initial_state
 _row_width = njit(**JIT, **INLINE)(kernel.row_width)
-PER_POSITIONS: JitOptions = {**JIT, "cache": False}
-"""The options of the small functions made per set of positions (closures over them): never cached themselves,
-they are inlined into the loops, which are."""
 
 
 def overlay_for(positions: Sequence[int], columns: Sequence[int]) -> np.ndarray:
@@ -110,27 +108,6 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _no_alias = lambda: None  # noqa: E731
 
 
-def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
-    """A compiled ``set(values, value)``: the ``table`` ``values`` with number ``column`` of its packed row
-    ([`pack_row`][heartpole.kernel.pack_row]) set to ``value``. Written out field by field, so that the
-    indices are constants of the code (numba's ``tuple_setitem`` takes tuples of one type only)."""
-    arguments = [f"values[{j}]" for j in range(len(table._fields))]  # type: ignore[attr-defined]
-    k, v = kernel.field_at(fields, num_variables, column)
-    arguments[k] = "value" if v is None else f"tuple_setitem(values[{k}], {v}, value)"
-    source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
-    namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
-    exec(source, namespace)  # code made here from field indices, nothing from outside
-    return njit(**PER_POSITIONS, **INLINE)(namespace["set_number"])
-
-
-def _getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
-    """A compiled ``get(values)``: number ``column`` of the ``table`` ``values``' packed row."""
-    k, v = kernel.field_at(fields, num_variables, column)
-    if v is None:
-        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k])
-    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
-
-
 @functools.lru_cache(maxsize=256)
 def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[int, int, int]) -> Any:
     """A compiled ``own(effects, tables, action, cells, i)``: ``(effects, tables)`` with env ``i``'s numbers at
@@ -138,24 +115,24 @@ def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[i
     action's only where it is ``action``. A chain of one function per position, each with its indices as
     constants: nothing for LLVM to unroll. ``layout``: the numbers of variables, the row width, of actions."""
     if not positions:
-        return njit(**PER_POSITIONS, **INLINE)(lambda effects, tables, action, cells, i: (effects, tables))
+        return njit(**kernel.PER_POSITIONS, **INLINE)(lambda effects, tables, action, cells, i: (effects, tables))
     rest = _chain(positions[1:], columns[1:], layout)
     num_variables, width, num_actions = layout
     owner, column = divmod(positions[0], width)
     row = U64(columns[0])
     if owner == num_actions:  # the tables' row
-        set_table = _setter(model.StepTables, kernel.TABLES, num_variables, column)
+        set_table = kernel.setter(model.StepTables, kernel.TABLES, num_variables, column)
 
-        @njit(**PER_POSITIONS, **INLINE)
+        @njit(**kernel.PER_POSITIONS, **INLINE)
         def overlay_tables(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
             value = cells[0][row * cells[1] + i]
             return rest(effects, set_table(tables, value), action, cells, i)
 
         return overlay_tables
-    set_effect = _setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
-    shared = _getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+    set_effect = kernel.setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+    shared = kernel.getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
 
-    @njit(**PER_POSITIONS, **INLINE)
+    @njit(**kernel.PER_POSITIONS, **INLINE)
     def overlay_action(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
         value = where(action == owner, cells[0][row * cells[1] + i], shared(effects))
         return rest(set_effect(effects, value), tables, action, cells, i)
@@ -204,7 +181,9 @@ def _shape(layout: Any) -> Any:
 
 
 @njit(**JIT, **INLINE)
-def _loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> None:
+def _loop(
+    envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
+) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     wide_vectors()
     _no_alias()
@@ -215,32 +194,34 @@ def _loop(envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: An
     for index in range(actions.shape[0]):
         i = U64(index)
         state, uniforms = kernel.env_state(envs, rng, i, zeros)
-        effects = kernel.action_effects(flat, width, layout, actions[i], zeros)
+        effects = kernel.action_effects(flat, width, layout, actions[i], zeros, selection)
         effects, tables = own(effects, shared, actions[i], values, i, layout, overlay)
         kernel.store_env(envs, results, rng, i, _step(state, effects, uniforms, tables))
 
 
 @njit(**JIT)
 def step_envs(
-    envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any
+    envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
 ) -> None:
     """[`step_envs`][heartpole.kernel.step_envs] with each env's own numbers: ``flat`` the packed tables
     raveled, ``cells`` and ``overlay`` as the module docstring says. No two of the arrays may overlap."""
-    _loop(envs, results, actions, rng, flat, layout, cells, overlay)
+    _loop(envs, results, actions, rng, flat, layout, cells, overlay, selection)
 
 
 @njit(**JIT)
-def _step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> Any:
+def _step_one(
+    envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
+) -> Any:
     """`step_one`'s compiled part: the loop over one env."""
     results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
-    _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay)
+    _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
 
-def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any) -> Any:
+def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any) -> Any:
     """[`step_one`][heartpole.kernel.step_one] with the env's own numbers (``cells`` ``(columns, 1)``): the
     loop of `step_envs`, so a single env is env 0 bit for bit; its results as Python numbers, compiled or not."""
-    reward, worked, risk, attack, new_score = _step_one(envs, action, rng, flat, layout, cells, overlay)
+    reward, worked, risk, attack, new_score = _step_one(envs, action, rng, flat, layout, cells, overlay, selection)
     return float(reward), float(worked), float(risk), bool(attack), float(new_score)
 
 
