@@ -217,27 +217,6 @@ PER_POSITIONS: JitOptions = {**JIT, "cache": False}
 they are inlined into the loops, which are."""
 
 
-def setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
-    """A compiled ``set(values, value)``: the ``table`` ``values`` with number ``column`` of its packed row
-    (`pack_row`) set to ``value``. Written out field by field, so that the indices are constants of the code
-    (numba's ``tuple_setitem`` takes tuples of one type only)."""
-    arguments = [f"values[{j}]" for j in range(len(table._fields))]  # type: ignore[attr-defined]
-    k, v = field_at(fields, num_variables, column)
-    arguments[k] = "value" if v is None else f"tuple_setitem(values[{k}], {v}, value)"
-    source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
-    namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
-    exec(source, namespace)  # code made here from field indices, nothing from outside
-    return njit(**PER_POSITIONS, **INLINE)(namespace["set_number"])
-
-
-def getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
-    """A compiled ``get(values)``: number ``column`` of the ``table`` ``values``' packed row (`pack_row`)."""
-    k, v = field_at(fields, num_variables, column)
-    if v is None:
-        return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k])
-    return njit(**PER_POSITIONS, **INLINE)(lambda values: values[k][v])
-
-
 def selection_for(packed: np.ndarray, num_actions: int) -> np.ndarray:
     """The loops' ``selection`` for [`pack`][heartpole.kernel.pack]'s array ``packed``: an empty array whose
     structured dtype names, as fields ``p{position}``, the numbers of its action rows (raveled) that differ, bit
@@ -257,18 +236,29 @@ def selection_for(packed: np.ndarray, num_actions: int) -> np.ndarray:
 def _selector(positions: tuple[int, ...], num_variables: int) -> Any:
     """A compiled ``select(effects, table, action)``: the first action's ``effects`` with, at each of
     ``positions`` of the action ``table`` (rows of `row_width`), the number of the action it belongs to where that
-    is ``action``. Written out as one line per position, its indices constants of the code (a chain of nested
-    functions would make numba's names of inlined variables grow with each link, until they collide)."""
-    namespace: dict[str, Any] = {"where": where}
-    lines = ["def select_all(effects, table, action):"]
-    for j, position in enumerate(positions):
-        owner, column = divmod(position, row_width(num_variables))
-        namespace[f"set_{j}"] = setter(model.ActionEffects, EFFECTS, num_variables, column)
-        namespace[f"get_{j}"] = getter(model.ActionEffects, EFFECTS, num_variables, column)
-        namespace[f"at_{j}"] = U64(position)
-        lines.append(f"    effects = set_{j}(effects, where(action == {owner}, table[at_{j}], get_{j}(effects)))")
-    lines.append("    return effects")
-    exec("\n".join(lines) + "\n", namespace)  # code made here from table positions, nothing from outside
+    is ``action``. Written out as one expression per number, its indices constants of the code: one function
+    for numba to compile, not one per position (which took v1's loops three times as long to compile)."""
+    width = row_width(num_variables)
+    owners: dict[int, list[int]] = {}  # column -> the positions of the actions whose number differs there
+    for position in positions:
+        owners.setdefault(position % width, []).append(position)
+
+    def number(column: int) -> str:
+        field, variable = field_at(EFFECTS, num_variables, column)
+        expression = f"effects[{field}]" + ("" if variable is None else f"[{variable}]")
+        for position in owners.get(column, []):  # its number read before: a select, not a load behind a branch
+            expression = f"(n{position} if action == {position // width} else {expression})"
+        return expression
+
+    per_variable = len(EFFECTS.per_variable)
+    fields = [
+        "(" + "".join(f"{number(k * num_variables + v)}, " for v in range(num_variables)) + ")"
+        for k in range(per_variable)
+    ] + [number(per_variable * num_variables + j) for j in range(len(EFFECTS.numbers))]
+    reads = "".join(f"    n{position} = table[U64({position})]\n" for position in positions)
+    source = f"def select_all(effects, table, action):\n{reads}    return ActionEffects({', '.join(fields)})\n"
+    namespace: dict[str, Any] = {"ActionEffects": model.ActionEffects, "U64": U64}
+    exec(source, namespace)  # code made here from table positions, nothing from outside
     return njit(**PER_POSITIONS, **INLINE)(namespace["select_all"])
 
 

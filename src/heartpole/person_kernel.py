@@ -36,7 +36,7 @@ from numba.extending import intrinsic, overload
 
 from heartpole import jit, kernel, model
 from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
-from heartpole.kernel import to_fixed_tuple
+from heartpole.kernel import to_fixed_tuple, tuple_setitem
 from heartpole.lanes import F32, U32, U64, add32, where
 
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
@@ -108,6 +108,27 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _no_alias = lambda: None  # noqa: E731
 
 
+def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
+    """A compiled ``set(values, value)``: the ``table`` ``values`` with number ``column`` of its packed row
+    ([`pack_row`][heartpole.kernel.pack_row]) set to ``value``. Written out field by field, so that the
+    indices are constants of the code (numba's ``tuple_setitem`` takes tuples of one type only)."""
+    arguments = [f"values[{j}]" for j in range(len(table._fields))]  # type: ignore[attr-defined]
+    k, v = kernel.field_at(fields, num_variables, column)
+    arguments[k] = "value" if v is None else f"tuple_setitem(values[{k}], {v}, value)"
+    source = f"def set_number(values, value):\n    return table({', '.join(arguments)})\n"
+    namespace: dict[str, Any] = {"table": table, "tuple_setitem": tuple_setitem}
+    exec(source, namespace)  # code made here from field indices, nothing from outside
+    return njit(**kernel.PER_POSITIONS, **INLINE)(namespace["set_number"])
+
+
+def _getter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
+    """A compiled ``get(values)``: number ``column`` of the ``table`` ``values``' packed row."""
+    k, v = kernel.field_at(fields, num_variables, column)
+    if v is None:
+        return njit(**kernel.PER_POSITIONS, **INLINE)(lambda values: values[k])
+    return njit(**kernel.PER_POSITIONS, **INLINE)(lambda values: values[k][v])
+
+
 @functools.lru_cache(maxsize=256)
 def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[int, int, int]) -> Any:
     """A compiled ``own(effects, tables, action, cells, i)``: ``(effects, tables)`` with env ``i``'s numbers at
@@ -121,7 +142,7 @@ def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[i
     owner, column = divmod(positions[0], width)
     row = U64(columns[0])
     if owner == num_actions:  # the tables' row
-        set_table = kernel.setter(model.StepTables, kernel.TABLES, num_variables, column)
+        set_table = _setter(model.StepTables, kernel.TABLES, num_variables, column)
 
         @njit(**kernel.PER_POSITIONS, **INLINE)
         def overlay_tables(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
@@ -129,8 +150,8 @@ def _chain(positions: tuple[int, ...], columns: tuple[int, ...], layout: tuple[i
             return rest(effects, set_table(tables, value), action, cells, i)
 
         return overlay_tables
-    set_effect = kernel.setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
-    shared = kernel.getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+    set_effect = _setter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
+    shared = _getter(model.ActionEffects, kernel.EFFECTS, num_variables, column)
 
     @njit(**kernel.PER_POSITIONS, **INLINE)
     def overlay_action(effects: Any, tables: Any, action: Any, cells: Any, i: Any) -> Any:
