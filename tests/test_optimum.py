@@ -229,6 +229,7 @@ def test_stopping_where_the_policy_settles_changes_nothing(monkeypatch) -> None:
     assert settled.expected_sleeps == pytest.approx(full.expected_sleeps, rel=1e-12)
 
 
+@pytest.mark.slow  # a long horizon: tens of seconds (the default suite keeps within 3 minutes)
 def test_a_million_decisions_take_little_memory_and_a_small_cache(tmp_path, monkeypatch) -> None:
     """Issue 24: 10,000 decisions took 800 MB and 100,000 would take 75 GB. Now a million are solved (grids of 400
     and 200, the coffee check), cached and loaded in a few MB, with the grid error of 1,000 decisions."""
@@ -253,6 +254,7 @@ def test_a_million_decisions_take_little_memory_and_a_small_cache(tmp_path, monk
     assert far.tolist() == [True, False]
 
 
+@pytest.mark.slow  # a long horizon: tens of seconds (the default suite keeps within 3 minutes)
 def test_regret_at_a_long_horizon() -> None:
     """Issue 24's call: 4 episodes of 100,000 steps used to end in a 75 GB allocation; now with their regret."""
     result = heartpole.evaluate("expert", env_id="HeartPole-v0", episodes=4, seed=0, env_kwargs={"max_steps": 100_000})
