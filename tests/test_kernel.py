@@ -298,6 +298,9 @@ def test_the_selection_names_exactly_the_numbers_that_differ_from_the_first_acti
     signed = dynamics.packed.copy()
     signed[2, 3] = -0.0  # beer lowers time_since_slept's effect by -0.0: the same number, other bits
     assert f"p{2 * width + 3}" in kernel.selection_for(signed, 4).dtype.names
+    # no sleep and no fading make sleep's rest and fades equal to doing nothing's: the loop stays v0's all the same
+    for params in (model.Params(sleep_half_hours=0), model.Params(decay_rate=1.0)):
+        assert Dynamics(params=params).selection.dtype == dynamics.selection.dtype
 
 
 @pytest.mark.slow

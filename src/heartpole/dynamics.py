@@ -59,7 +59,9 @@ class Dynamics:
         _check_float32(self.effects, self.tables)
         self.packed = kernel.pack(self.effects, self.tables)
         self.layout = kernel.layout(len(self.variables), len(self.tables.rest_offsets), len(self.actions))
-        self.selection = kernel.selection_for(self.packed, len(self.actions))
+        # the numbers that differ between actions with these parameters or the defaults: loops shared by parameters
+        default = kernel.pack(*step_tables(self.actions, self.variables, Params()))
+        self.selection = kernel.selection_for(self.packed, len(self.actions), default)
 
     def action_index(self, name: str) -> int:
         """The index of the action called ``name``."""

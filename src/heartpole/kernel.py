@@ -217,16 +217,21 @@ PER_POSITIONS: JitOptions = {**JIT, "cache": False}
 they are inlined into the loops, which are."""
 
 
-def selection_for(packed: np.ndarray, num_actions: int) -> np.ndarray:
+def selection_for(packed: np.ndarray, num_actions: int, *also: np.ndarray) -> np.ndarray:
     """The loops' ``selection`` for [`pack`][heartpole.kernel.pack]'s array ``packed``: an empty array whose
     structured dtype names, as fields ``p{position}``, the numbers of its action rows (raveled) that differ, bit
-    for bit, from the first action's number in the same column (and a field ``first``, so that it has one).
+    for bit, from the first action's number in the same column (and a field ``first``, so that it has one); and
+    those that differ in any of the arrays ``also`` (selecting a number equal to the first action's changes
+    nothing, so variants that differ in parameters only can share one compiled loop).
 
     Being part of the argument's *type*, the positions are constants of the compiled loop, and key numba's disk
     cache: the loop selects an env's action effects with one mask for each position (`select`), and none where
     every action has the same number (v0: 11 masks, where a mask per action and number would take 33)."""
-    bits = np.ascontiguousarray(packed[:num_actions], dtype=np.float32).view(np.uint32)
-    positions = np.flatnonzero((bits[1:] != bits[0]).ravel()) + bits.shape[1]
+    differ = np.zeros(packed[1:num_actions].shape, dtype=bool)
+    for table in (packed, *also):
+        bits = np.ascontiguousarray(table[:num_actions], dtype=np.float32).view(np.uint32)
+        differ |= bits[1:] != bits[0]
+    positions = np.flatnonzero(differ.ravel()) + packed.shape[1]
     names = ["first"] + [f"p{int(p)}" for p in positions]
     fields = {"names": names, "formats": [np.uint8] * len(names), "offsets": [0] * len(names)}
     return np.empty(0, dtype=np.dtype(fields))  # type: ignore[call-overload]
