@@ -60,8 +60,10 @@ class Dynamics:
         self.packed = kernel.pack(self.effects, self.tables)
         self.layout = kernel.layout(len(self.variables), len(self.tables.rest_offsets), len(self.actions))
         # the numbers that differ between actions with these parameters or the defaults: loops shared by parameters
-        default = kernel.pack(*step_tables(self.actions, self.variables, Params()))
-        self.selection = kernel.selection_for(self.packed, len(self.actions), default)
+        defaults = []
+        if self.params != Params():
+            defaults.append(kernel.pack(*step_tables(self.actions, self.variables, Params())))
+        self.selection = kernel.selection_for(self.packed, len(self.actions), *defaults)
 
     def action_index(self, name: str) -> int:
         """The index of the action called ``name``."""
