@@ -5,6 +5,7 @@ device JAX has (a GPU where JAX finds one, else the CPU).
     python benchmarks/jax_speed.py --envs 1024 16384 262144 1048576 4194304 --steps 100   # a GPU's table
     python benchmarks/jax_speed.py --envs 16384 --numpy              # + the NumPy vector envs (CPU)
     python benchmarks/jax_speed.py --fusions                         # + XLA's fused kernels in one step
+    python benchmarks/jax_speed.py --fusions --hlo out/hlo           # + each column's compiled step (HLO text)
     XLA_FLAGS=--xla_cpu_multi_thread_eigen=false python benchmarks/jax_speed.py --clock cpu   # a busy CPU
 
 JAX envs run as their users run them: ``jit(vmap(step))`` over all envs, ``lax.scan`` over the steps, random
@@ -23,6 +24,7 @@ import re
 import statistics
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -73,13 +75,16 @@ def jax_env_speed(env: Any, params: Any, num_envs: int, steps: int, repeats: int
     return num_envs * steps / statistics.median(times)
 
 
-def fusions(env: Any, params: Any, num_envs: int) -> int:
-    """How many fused kernels XLA makes of one vmapped step (the body of the loop a training or rollout runs)."""
+def fusions(env: Any, params: Any, num_envs: int, hlo: Path | None = None) -> int:
+    """How many fused kernels XLA makes of one vmapped step (the body of the loop a training or rollout runs);
+    with ``hlo``, the compiled step's HLO text is written there too."""
     step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
     _, state = jax.vmap(env.reset, in_axes=(0, None))(jax.random.split(jax.random.key(0), num_envs), params)
     keys = jax.random.split(jax.random.key(1), num_envs)
     actions = jnp.zeros(num_envs, jnp.int32)
     text = jax.jit(step).lower(keys, state, actions, params).compile().as_text()
+    if hlo is not None:
+        hlo.write_text(text)
     entry = text[text.index("ENTRY") :]
     return len(re.findall(r"= \S+ fusion\(", entry))
 
@@ -121,14 +126,18 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs; the median is reported (default 3)")
     parser.add_argument("--numpy", action="store_true", help="add the NumPy vector envs (CPU) at every size")
     parser.add_argument("--fusions", action="store_true", help="print XLA's fused kernels in one vmapped step")
+    parser.add_argument("--hlo", type=Path, default=None, help="with --fusions: write each step's HLO into this folder")
     parser.add_argument("--clock", choices=CLOCKS, default="wall", help="wall (default) or cpu time of the process")
     args = parser.parse_args()
     if min(args.envs) < 1 or args.steps < 1 or args.repeats < 1:
         parser.error("--envs, --steps and --repeats must be positive")
     columns = envs_to_measure()
     if args.fusions:
-        for name, env, params in columns:
-            print(f"{name}: {fusions(env, params, args.envs[0])} fused kernels in one vmapped step")
+        if args.hlo is not None:
+            args.hlo.mkdir(parents=True, exist_ok=True)
+        for number, (name, env, params) in enumerate(columns):
+            hlo = None if args.hlo is None else args.hlo / f"step{number}.hlo.txt"
+            print(f"{name}: {fusions(env, params, args.envs[0], hlo)} fused kernels in one vmapped step")
     header = ["envs", *(name for name, _, _ in columns)]
     if len(columns) == 3:
         header += ["HeartPole / CartPole", "people / v0"]

@@ -15,7 +15,11 @@ RESULTS = ROOT / "docs" / "results"
 # (page, summaries, labels): each command the page shows, as it shows it
 TABLES = [
     ("training.md", ["seeds-sb3-before.json", "seeds-sb3.json"], ["3e-4 constant (before)", "6e-4 annealed (now)"]),
-    ("jax.md", ["seeds-jax-before.json", "seeds-jax.json"], ["key splits a step (before)", "one draw a step (now)"]),
+    (
+        "jax.md",
+        ["seeds-jax-before.json", "seeds-jax.json"],
+        ["one threefry draw a step (before)", "the key's own bits (now)"],
+    ),
 ]
 
 

@@ -60,6 +60,24 @@ def test_a_gymnax_step_takes_its_randomness_from_its_key() -> None:
     assert not np.array_equal(a[0], c[0])
 
 
+def test_a_step_s_generator_key_is_its_key_s_own_bits() -> None:
+    """A threefry key's data is the step's generator key (no threefry call of the step's own), a raw
+    ``uint32[2]`` key's the same; a key of another implementation (rbg, four words) is drawn from once, and
+    steps as well."""
+    from heartpole.jax.traced import key_draw
+
+    typed, raw = jax.random.key(7), jax.random.PRNGKey(7)
+    words = [int(x) for x in jax.random.key_data(typed)]
+    assert [int(x) for x in key_draw(typed)] == words == [int(x) for x in key_draw(raw)]
+    env, params = make("HeartPole-v0")
+    obs_typed, _ = env.reset(typed, params)
+    np.testing.assert_array_equal(obs_typed, env.reset(raw, params)[0])
+    rbg = jax.random.key(7, impl="rbg")
+    assert key_draw(rbg)[0].dtype == jnp.uint32
+    obs, state = env.reset(rbg, params)
+    assert np.all(np.isfinite(np.asarray(env.step(rbg, state, 1, params)[0])))
+
+
 @pytest.mark.parametrize(("policy", "env_kwargs"), [("expert", {}), ("optimal", {}), ("reference", {"max_steps": 300})])
 def test_the_same_seed_plays_the_same_episodes_and_gives_the_same_table(policy, env_kwargs) -> None:
     """2,000 evaluation episodes on numba and on JAX: at least 99.9% identical (float32 rounding of ``exp`` may

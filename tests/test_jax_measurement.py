@@ -87,7 +87,8 @@ def test_traits_follow_the_age_and_bad_measurements_are_refused() -> None:
                        measurement=Measurement({"alertness": 0.1}, every=2))  # fmt: skip
     obs, state = env.reset(jax.random.key(0), params)
     assert obs.shape == (12,) and env.observation_space(params).shape == (12,)
-    np.testing.assert_array_equal(obs[7:], state.person_values)
+    np.testing.assert_array_equal(obs[7:], env.person_values(state))
+    assert state.person_values.shape == (0,)  # a cohort's person is carried as their index alone
     with pytest.raises(TypeError, match="measurement must be a heartpole.measurement.Measurement or None"):
         make("HeartPole-v0", measurement={"alertness": 0.1})
     with pytest.raises(ValueError, match=r"unknown variables \['thc'\]"):

@@ -165,6 +165,42 @@ def test_exported_model_acts_as_the_jax_network(tmp_path) -> None:
     np.testing.assert_array_equal(policy(obs), np.asarray(jnp.argmax(logits, axis=1)))
 
 
+@pytest.mark.slow
+def test_each_seed_is_written_as_sb3_writes_it(tmp_path, monkeypatch) -> None:
+    """Seeds copied to the host a chunk at a time (a chunk of one here) are the device's seeds, and the writer's
+    model.zip, built from the first seed's archive, is SB3's own save of the same model: the same entries in the
+    same order, the same bytes but for the weights, and each seed's own weights."""
+    import zipfile
+
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    monkeypatch.setattr(export, "HOST_CHUNK", 1)
+    config = training.preset_config("default", timesteps=1024, n_envs=8, env_kwargs={"max_steps": 32})
+    trained = ppo.train_compiled(config, [3, 4])
+    picked = list(export.on_host(trained))
+    assert len(picked) == 2
+    weights = []
+    with export.SB3Writer(config) as writer:
+        for i, (runner, curve) in enumerate(picked):
+            device = jax.tree_util.tree_map(lambda x, i=i: x[i], (trained.runners.network, trained.ended))
+            for a, b in zip(jax.tree_util.tree_leaves(runner.network), jax.tree_util.tree_leaves(device[0])):
+                np.testing.assert_array_equal(a, b)
+            assert curve == ppo.learning_curve(device[1], trained.settings)
+            writer.write(runner, tmp_path / f"seed_{i}")
+            ours, theirs = tmp_path / f"seed_{i}" / "model.zip", tmp_path / "sb3.zip"
+            writer.model.save(theirs)
+            with zipfile.ZipFile(ours) as mine, zipfile.ZipFile(theirs) as sb3:
+                assert mine.namelist() == sb3.namelist() and export.POLICY_ENTRY in mine.namelist()
+                for name in mine.namelist():
+                    if name != export.POLICY_ENTRY:
+                        assert mine.read(name) == sb3.read(name), name
+            mine_params, sb3_params = load_from_zip_file(ours)[1], load_from_zip_file(theirs)[1]
+            for name, tensor in sb3_params["policy"].items():
+                assert torch.equal(mine_params["policy"][name], tensor), name
+            weights.append(mine_params["policy"]["action_net.weight"])
+    assert not torch.equal(*weights)  # two seeds, two networks
+
+
 def test_cli_backend_jax_without_jax_says_what_to_install() -> None:
     code = (
         "import sys; sys.modules['jax'] = None\n"

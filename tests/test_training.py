@@ -384,6 +384,8 @@ def test_cli_train_seeds_prints_the_aggregate(tmp_path: Path, capsys: pytest.Cap
         (["--seeds", "4-2"], "--seeds takes ranges"),
         (["--seeds", "1,1"], "twice"),
         (["--seeds", "a-b"], "--seeds takes a list"),
+        (["--seeds", "0-100"], "--seeds: at most 100 seeds with --backend sb3, got '0-100'"),
+        (["--backend", "jax", "--seeds", "0-4,10-65541"], "at most 65,536 seeds with --backend jax"),
         (["--preset", "fast"], "unknown preset 'fast'"),
         (["--env", "CartPole-v1"], "not a HeartPole env"),
         (["--env", "NoSuchEnv-v0"], "unknown env"),

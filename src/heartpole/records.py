@@ -213,8 +213,11 @@ def _summary_line(
     solved_by: bool | None,
 ) -> dict[str, Any]:  # fmt: skip
     """[`run_summary`][heartpole.records.run_summary]'s line, solved by regret (``solved_by``) or the env's bar."""
-    bar = env_solved_bar(config.env_id, config.env_kwargs)
-    by_regret = solved_by
+    if solved_by is None:
+        bar = env_solved_bar(config.env_id, config.env_kwargs)
+        solved_by, bar = meets_bar(evaluation, bar), bar
+    else:
+        bar = {"regret_at_most": solved.SOLVED_REGRET}
     return {
         "seed": config.seed,
         "mean_return": evaluation["mean_return"],
@@ -227,8 +230,8 @@ def _summary_line(
         "sleeps_per_episode": evaluation["sleeps_per_episode"],
         "regret": evaluation.get("regret"),
         "regret_ci95": evaluation.get("regret_ci95"),
-        "solved": meets_bar(evaluation, bar) if by_regret is None else by_regret,
-        "solved_bar": bar if by_regret is None else {"regret_at_most": solved.SOLVED_REGRET},
+        "solved": solved_by,
+        "solved_bar": bar,
         "train_seconds": round(train_seconds, 2),
         "wall_seconds": round(wall, 2),
     } | ({} if cpu is None else {"cpu_seconds": round(cpu, 2)})

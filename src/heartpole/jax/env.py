@@ -7,7 +7,7 @@ parameter pytrees, key handling, the step counter, truncation and autoreset.
 
 The random numbers are [`heartpole.rng`][heartpole.rng]'s counter-based generator, the NumPy envs' own, traced
 (`RNG`). gymnax's ``step(key, ...)`` takes its randomness from ``key`` (one state stepped with two keys may
-have two futures): a step's uniforms are the hash of one 64-bit draw of ``key``. A rollout that carries the
+have two futures): a step's uniforms are the generator's hash of ``key``'s own 64 bits. A rollout that carries the
 NumPy envs' generator states instead ([`heartpole.jax.evaluate`][heartpole.jax.evaluation.evaluate]) plays
 the NumPy envs' very episodes.
 
@@ -40,17 +40,22 @@ from heartpole.people import People, Sample, check_observe_traits
 class EnvState:
     """One episode's state: the state variables (a tuple of float32 scalars, observation order: one array per
     variable under ``vmap``), the decisions taken and the episode's person (an env with ``people``): the cohort
-    index (int32; -1 for a distribution or no people) and the person's values (float32, one per column of
-    ``people.columns``; none without people)."""
+    index (an int32 scalar, -1 for a distribution) and a distribution's person's values (float32, one per column
+    of ``people.columns``; a cohort's person is their index, and `HeartPoleJax.person_values` reads their row).
+
+    What an env does not use is an empty array (``person`` without people, ``person_values`` without a
+    distribution, ``seen`` and ``age`` without measurement): every field that is carried costs each step its
+    read and write, and on a GPU, where a large batch of steps is bound by memory traffic, v0's two unused
+    scalars were 15% of it and a cohort's five values a third of the people's."""
 
     variables: tuple[jax.Array, ...]
     time: jax.Array
-    person: jax.Array = field(default_factory=lambda: jnp.int32(-1))
+    person: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.int32))
     person_values: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
     seen: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
     """With ``measurement``: the variables as last measured (float32, observation order); else empty."""
-    age: jax.Array = field(default_factory=lambda: jnp.float32(0))
-    """With ``measurement``: the half-hours since ``seen`` was measured."""
+    age: jax.Array = field(default_factory=lambda: jnp.zeros(0, jnp.float32))
+    """With ``measurement``: the half-hours since ``seen`` was measured (a float32 scalar); else empty."""
 
 
 @jax.tree_util.register_dataclass
@@ -126,7 +131,8 @@ class HeartPoleJax:
     ``productivity`` and ``score``. gymnax's wrappers (``LogWrapper`` ...) accept the env.
 
     **People.** With ``people``, every episode (at `reset` and at the autoreset inside `step`) draws its
-    person from the reset key, and the state carries them (``state.person``, ``state.person_values``):
+    person from the reset key, and the state carries them (``state.person``; a distribution's person's values in
+    ``state.person_values``, any person's through `person_values`):
     `step_env` runs on `person_params`, the given params with the person's entries. ``vmap`` over envs
     gives each env its own people; ``info["person"]`` (cohort index, -1 for a distribution) and
     ``info["traits"]`` name the person of the step just taken (at an autoreset the ended episode's, as
@@ -220,9 +226,9 @@ class HeartPoleJax:
         """One decision and the half-hour after it: ``(obs, state, reward, terminated, truncated, info)``;
         an episode that reaches its step limit restarts at once.
 
-        All its randomness comes from one 64-bit draw of ``key`` (`key_draw`): the step's uniforms are that
-        generator key's draw 0 (as `step_env`'s), the next episode's (its person, its waking up) draw
-        `RESET_DRAW`; one threefry call a step instead of a split and a call for each part."""
+        All its randomness comes from ``key``'s 64 bits taken as a generator key (`key_draw`): the step's
+        uniforms are that generator key's draw 0 (as `step_env`'s), the next episode's (its person, its waking
+        up) draw `RESET_DRAW`; no threefry call of its own, where a split and a call for each part were four."""
         params = self.default_params if params is None else params
         action = self.check_action(action)
         low, high = key_draw(key)
@@ -236,7 +242,7 @@ class HeartPoleJax:
         return obs, state, reward, terminated, truncated, info
 
     def reset_env(self, key: jax.Array, params: EnvParams) -> tuple[jax.Array, EnvState]:
-        """[`initial_state`][heartpole.model.initial_state] with the wake-up uniform of one draw of ``key``;
+        """[`initial_state`][heartpole.model.initial_state] with the wake-up uniform of ``key``'s generator key;
         with people, the episode's person is drawn first and wakes up by their own params."""
         return self._reset_from(key, *key_draw(key), 0, params)
 
@@ -247,32 +253,34 @@ class HeartPoleJax:
         person up, the uniform after it picks a cohort's person (`NOISE` says how ``key`` is folded for a
         distribution's person and the first measurement)."""
         n = self.num_variables
-        person, values = jnp.int32(-1), jnp.zeros(0, jnp.float32)
+        person, values = jnp.zeros(0, jnp.int32), jnp.zeros(0, jnp.float32)
         if self.population is not None:
             chooser = RNG.uniform(low, high, draw, n + 1)
             person, values = self.population.draw(jax.random.fold_in(key, 3 + 2 * draw), chooser)
+            if self.population.cohort_values is not None:
+                values = jnp.zeros(0, jnp.float32)  # a cohort's person is their index (`person_values`)
         noise_key = jax.random.fold_in(key, 2 + 2 * draw)
         return self.start(noise_key, person, values, RNG.wake_uniform(low, high, draw, n), params)
 
     def start(
         self, key: jax.Array, person: jax.Array, values: jax.Array, uniform: jax.Array, params: EnvParams
     ) -> tuple[jax.Array, EnvState]:
-        """``(obs, state)`` of an episode of ``person`` (cohort index, or -1) with ``values`` that wakes up with
-        ``uniform``; ``key`` draws the first measurement's noise (with ``measurement``)."""
+        """``(obs, state)`` of an episode of ``person`` (cohort index, -1, or empty without people) with ``values``
+        that wakes up with ``uniform``; ``key`` draws the first measurement's noise (with ``measurement``)."""
         zeros = (jnp.float32(0.0),) * self.num_variables
         state = EnvState(variables=zeros, time=jnp.int32(0), person=person, person_values=values)
         tables = self._tables(self.person_params(state, params))
         state = dataclasses.replace(state, variables=_floats(MODEL.initial_state(zeros, uniform, tables)))
         if self.sensor is not None:
-            state = dataclasses.replace(state, seen=jnp.stack(state.variables))
+            state = dataclasses.replace(state, seen=jnp.stack(state.variables), age=jnp.float32(0.0))
             state = self._measure(self.sensor, key, state, jnp.float32(jnp.inf))
         return self.get_obs(state), state
 
     def step_env(
         self, key: jax.Array, state: EnvState, action: Any, params: EnvParams
     ) -> tuple[jax.Array, EnvState, jax.Array, jax.Array, dict[str, jax.Array]]:
-        """[`step`][heartpole.model.step] with the ``len(state) + 2`` uniforms of one draw of ``key``
-        ([`draws`][heartpole.rng.draws] of its 64-bit `key_draw`), no reset: ``(obs, state, reward,
+        """[`step`][heartpole.model.step] with the ``len(state) + 2`` uniforms of ``key``
+        ([`draws`][heartpole.rng.draws] of its generator key, `key_draw`), no reset: ``(obs, state, reward,
         terminated, info)``.
 
         An action that is not one of the env's is refused with the NumPy envs' ``ValueError`` where it is
@@ -313,7 +321,7 @@ class HeartPoleJax:
             "invalid_action": ~valid,
         }
         if self.population is not None:
-            info |= {"person": state.person, "traits": state.person_values[self.population.trait_index]}
+            info |= {"person": state.person, "traits": self.person_values(state)[self.population.trait_index]}
         reward = jnp.where(valid, jnp.float32(reward), jnp.float32(0.0))
         return self.get_obs(state), state, reward, self.is_terminated(state, params), info
 
@@ -344,7 +352,7 @@ class HeartPoleJax:
         if self.sensor is not None:
             obs = self.sensor.observation(state.seen[None], state.age[None], jnp)[0]
         if self.observe_traits and self.population is not None:
-            return jnp.concatenate([obs, state.person_values[self.population.trait_index]])
+            return jnp.concatenate([obs, self.person_values(state)[self.population.trait_index]])
         return obs
 
     @staticmethod
@@ -405,13 +413,26 @@ class HeartPoleJax:
                 Box(low, high, (), jnp.float32) for low, high in zip(variables.low.tolist(), variables.high.tolist())
             ),
             "time": Box(0, np.iinfo(np.int32).max, (), jnp.int32),
-            "person": Box(-1, max(len(self.people.cohort) - 1, -1) if self.people else -1, (), jnp.int32),
-            "person_values": Box(-np.inf, np.inf, (columns,), jnp.float32),
+            "person": Box(-1, max(len(self.people.cohort) - 1, -1), (), jnp.int32)
+            if self.people
+            else Box(-1, -1, (0,), jnp.int32),
+            "person_values": Box(-np.inf, np.inf, (columns if self._carries_values() else 0,), jnp.float32),
             "seen": Box(-np.inf, np.inf, (0 if self.sensor is None else self.num_variables,), jnp.float32),
-            "age": Box(0, np.inf, (), jnp.float32),
+            "age": Box(0, np.inf, (() if self.sensor is not None else (0,)), jnp.float32),
         }
 
     # -- people ----------------------------------------------------------------------------------------
+    def person_values(self, state: EnvState) -> jax.Array:
+        """The values of ``state``'s person, one per column of ``people.columns`` (float32): a cohort member's
+        row of the cohort, a distribution's person's as drawn (``state.person_values``); empty without people."""
+        if self.population is not None and self.population.cohort_values is not None:
+            return self.population.cohort_values[state.person]
+        return state.person_values
+
+    def _carries_values(self) -> bool:
+        """Whether `EnvState.person_values` holds the person's values (a distribution's person)."""
+        return self.population is not None and self.population.cohort_values is None
+
     def person_params(self, state: EnvState, params: EnvParams) -> EnvParams:
         """The params ``state``'s episode runs on: ``params`` with the entries the person's values set (the
         rest, the task's ``heart_attack_penalty`` and ``max_steps_in_episode`` among them, as given); without

@@ -104,15 +104,15 @@ def rollout(env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: j
     zeros = (jnp.float32(0.0),) * num_variables
     drinks = jnp.asarray([a.is_drink for a in env.dynamics.actions], dtype=jnp.int32)
     sleeps = jnp.asarray([a.sleeps for a in env.dynamics.actions], dtype=jnp.int32)
+    _check_cohort(env)
     person = jnp.asarray(start.person, dtype=jnp.int32)
-    values = _person_values(env, person)
     state = EnvState(
         variables=tuple(jnp.asarray(start.variables[v]) for v in range(num_variables)),
         time=jnp.zeros(n, jnp.int32),
-        person=person,
-        person_values=values,
+        person=person if env.population is not None else jnp.zeros((n, 0), jnp.int32),
+        person_values=jnp.zeros((n, 0), jnp.float32),  # a cohort's person is their index
         seen=jnp.zeros((n, 0), jnp.float32),
-        age=jnp.zeros(n, jnp.float32),
+        age=jnp.zeros((n, 0), jnp.float32),
     )
     key_low, key_high = (jnp.asarray(start.generators[row]) for row in (KEY_LOW, KEY_HIGH))
 
@@ -143,17 +143,13 @@ def rollout(env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: j
     return totals, MODEL.score(state.variables[WORK_DONE], state.variables[TIME_ELAPSED])
 
 
-def _person_values(env: HeartPoleJax, person: jax.Array) -> jax.Array:
-    """Each env's person's values (a cohort's row), or none without people."""
-    if env.population is None:
-        return jnp.zeros((person.shape[0], 0), jnp.float32)
-    cohort = env.population.cohort_values
-    if cohort is None:
+def _check_cohort(env: HeartPoleJax) -> None:
+    """Refuse a distribution of people: their values are drawn by the NumPy env's generator."""
+    if env.population is not None and env.population.cohort_values is None:
         raise ValueError(
             "heartpole.jax.evaluate plays the people of a cohort (people='default' or People(cohort=[...])); a "
             "distribution's people are drawn by the NumPy env: evaluate them with heartpole.evaluate"
         )
-    return cohort[person]
 
 
 def _act(policy: str | JaxPolicy, env_id: str, env_kwargs: Mapping[str, Any]) -> tuple[Act, str]:

@@ -10,13 +10,15 @@ PyTorch, for the saved format).
 
 from __future__ import annotations
 
+import io
 import os
 import threading
 import time
-from collections.abc import Callable, Sequence
+import zipfile
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import gymnasium as gym
 import jax
@@ -25,7 +27,15 @@ import numpy as np
 
 from heartpole import files, records
 from heartpole.jax.evaluation import evaluate_batch
-from heartpole.jax.ppo import PPOSettings, Runner, RunningStats, Trained, policy_and_value, train_compiled
+from heartpole.jax.ppo import (
+    PPOSettings,
+    Runner,
+    RunningStats,
+    Trained,
+    learning_curve,
+    policy_and_value,
+    train_compiled,
+)
 from heartpole.policies import CURVE_NAME, MODEL_NAME, SIDECAR_NAME, VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME
 from heartpole.policies.saved import file_sha256
 from heartpole.policies.untrusted import save_statistics
@@ -53,6 +63,42 @@ def sb3_ppo(config: Any) -> tuple[BaseAlgorithm, VecEnv]:
     return records.sb3_model(config, venv), venv
 
 
+class Weights(NamedTuple):
+    """What a trained seed saves: its network and the running statistics of its observations and returns (the
+    fields of a [`Runner`][heartpole.jax.ppo.Runner] that `SB3Writer` writes)."""
+
+    network: dict[str, Any]
+    obs_stats: RunningStats
+    return_stats: RunningStats
+
+
+HOST_CHUNK = 256
+"""Seeds copied from the JAX device to the host at a time (`on_host`): a seed's learning-curve metrics are
+about 5 MB with the default preset, so a chunk bounds the host memory at about 1.3 GB."""
+
+
+def on_host(trained: Trained) -> Iterator[tuple[Weights, list[dict[str, float]]]]:
+    """Each seed's `Weights` and learning-curve rows, in seed order, copied from the device ``HOST_CHUNK`` seeds
+    at a time: picking one seed out of device arrays is a device operation for each array of each seed (for
+    4,096 seeds on a GPU, minutes), out of host arrays a NumPy view."""
+    runners = trained.runners
+    stacked = (Weights(runners.network, runners.obs_stats, runners.return_stats), trained.ended)
+    count = len(jax.tree_util.tree_leaves(stacked)[0])
+    for first in range(0, count, HOST_CHUNK):
+        weights, ended = jax.device_get(_rows(stacked, slice(first, first + HOST_CHUNK)))
+        for i in range(min(HOST_CHUNK, count - first)):
+            yield _rows(weights, i), learning_curve(_rows(ended, i), trained.settings)
+
+
+def _rows(tree: Any, index: int | slice) -> Any:
+    """Every array of ``tree`` indexed along its first axis (the seeds') by ``index``."""
+    return jax.tree_util.tree_map(lambda x: x[index], tree)
+
+
+POLICY_ENTRY = "policy.pth"
+"""The entry of SB3's ``model.zip`` that holds the policy's weights (``torch.save`` of its ``state_dict``)."""
+
+
 class SB3Writer:
     """Writes seeds' trained networks and statistics as ``heartpole train`` saves SB3's runs: ``model.zip`` (an
     SB3 PPO ``MlpPolicy`` with these weights), ``vecnormalize.pkl`` and ``vecnormalize.json`` (the running
@@ -63,6 +109,7 @@ class SB3Writer:
     def __init__(self, config: Any) -> None:
         self.config = config
         self.model, self.venv = sb3_ppo(config)
+        self._archive: list[tuple[zipfile.ZipInfo, bytes]] | None = None
 
     def __enter__(self) -> SB3Writer:
         return self
@@ -70,8 +117,9 @@ class SB3Writer:
     def __exit__(self, *exc: object) -> None:
         self.venv.close()
 
-    def write(self, runner: Runner, folder: Path) -> None:
-        """Save ``runner``'s network and statistics into ``folder``."""
+    def write(self, runner: Weights | Runner, folder: Path) -> None:
+        """Save ``runner``'s network and statistics (a `Weights`, or a whole
+        [`Runner`][heartpole.jax.ppo.Runner]) into ``folder``."""
         import torch
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -93,7 +141,7 @@ class SB3Writer:
             # presence as "expects normalised observations" and warns when no statistics come with the model
             shape = (int(self.config.n_envs), *(venv.observation_space.shape or ()))
             model._last_original_obs = np.zeros(shape, dtype=np.float32)
-        model.save(folder / MODEL_NAME)
+        self._save_model(folder / MODEL_NAME)
         if isinstance(venv, VecNormalize):
             obs_rms = cast("RunningMeanStd", venv.obs_rms)  # a dict only for dict observations
             for stats, ours in ((obs_rms, runner.obs_stats), (venv.ret_rms, runner.return_stats)):
@@ -104,8 +152,27 @@ class SB3Writer:
             venv.save(str(folder / VECNORMALIZE_NAME))
             save_statistics(venv, folder / VECNORMALIZE_JSON_NAME)
 
+    def _save_model(self, path: Path) -> None:
+        """What ``self.model.save(path)`` writes, made from the first seed's archive: everything SB3 saves but
+        the policy's weights (the model's attributes as JSON, the untouched optimiser, the versions) is the same
+        for every seed, and serialising it was most of a seed's writing; each archive gets its own
+        `POLICY_ENTRY`, written as SB3 writes it."""
+        import torch
 
-def export_sb3(config: Any, runner: Runner, folder: Path) -> None:
+        if self._archive is None:
+            buffer = io.BytesIO()
+            self.model.save(buffer)
+            with zipfile.ZipFile(buffer) as archive:
+                self._archive = [(info, archive.read(info)) for info in archive.infolist()]
+        weights = io.BytesIO()
+        torch.save(self.model.policy.state_dict(), weights)
+        path.parent.mkdir(parents=True, exist_ok=True)  # as SB3's save does
+        with zipfile.ZipFile(path, "w") as archive:
+            for info, data in self._archive:
+                archive.writestr(info, weights.getvalue() if info.filename == POLICY_ENTRY else data)
+
+
+def export_sb3(config: Any, runner: Weights | Runner, folder: Path) -> None:
     """Save one seed's trained network and statistics as ``heartpole train`` saves SB3's (`SB3Writer`)."""
     with SB3Writer(config) as writer:
         writer.write(runner, folder)
@@ -145,7 +212,7 @@ def evaluate_trained(
 
 
 def _write_seed(
-    config: Any, writer: SB3Writer, runner: Runner, curve: list[dict[str, float]], folder: Path,
+    config: Any, writer: SB3Writer, runner: Weights, curve: list[dict[str, float]], folder: Path,
     evaluation: dict[str, Any], timings: dict[str, float],
 ) -> dict[str, Any]:  # fmt: skip
     """Write one seed's files into ``folder`` (the model, its statistics, the curve, ``heartpole.json`` and its
@@ -245,8 +312,7 @@ def train_seeds(
     timings = trained.timings | {"eval_seconds": time.perf_counter() - started}
     runs: list[dict[str, Any]] = []
     with SB3Writer(config) as writer:
-        for i, seed in enumerate(seeds):
-            runner, curve = trained.seed(i)
+        for i, (seed, (runner, curve)) in enumerate(zip(seeds, on_host(trained))):
             result = _write_seed(replace(config, seed=seed), writer, runner, curve, places[i][0], evaluations[i],
                                  timings)  # fmt: skip
             runs.append(result)

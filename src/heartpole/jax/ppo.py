@@ -441,14 +441,6 @@ class Trained(NamedTuple):
     settings: PPOSettings
     timings: dict[str, float]
 
-    def seed(self, i: int) -> tuple[Runner, list[dict[str, float]]]:
-        """The ``i``-th seed's runner and learning-curve rows."""
-
-        def pick(tree: Any) -> Any:
-            return jax.tree_util.tree_map(lambda x: x[i], tree)
-
-        return pick(self.runners), learning_curve(pick(self.ended), self.settings)
-
 
 def train_compiled(
     config: Any,
