@@ -8,6 +8,7 @@ and act, not that the agent learns (benchmarks/solve.py measures that, see READM
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import os
 import subprocess
@@ -385,7 +386,11 @@ def test_cli_train_seeds_prints_the_aggregate(tmp_path: Path, capsys: pytest.Cap
         (["--seeds", "1,1"], "twice"),
         (["--seeds", "a-b"], "--seeds takes a list"),
         (["--seeds", "0-100"], "--seeds: at most 100 seeds with --backend sb3, got '0-100'"),
-        (["--backend", "jax", "--seeds", "0-4,10-65541"], "at most 65,536 seeds with --backend jax"),
+        pytest.param(
+            ["--backend", "jax", "--seeds", "0-4,10-65541"],
+            "at most 65,536 seeds with --backend jax",
+            marks=pytest.mark.skipif(importlib.util.find_spec("jax") is None, reason="needs the 'jax' extra"),
+        ),
         (["--preset", "fast"], "unknown preset 'fast'"),
         (["--env", "CartPole-v1"], "not a HeartPole env"),
         (["--env", "NoSuchEnv-v0"], "unknown env"),
