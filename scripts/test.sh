@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up (if needed), lint, and run the default test suite (under 3 minutes on a 2-core machine): every test
-# but those marked slow (the long statistical ones, and a large variant's compile). `bash scripts/test.sh -m slow` runs those; .ci/run runs both.
+# but those marked slow (the long statistical ones, and a large variant's compile). `bash scripts/test.sh -m slow`
+# runs those; .ci/run runs both.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
