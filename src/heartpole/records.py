@@ -215,7 +215,7 @@ def _summary_line(
     """[`run_summary`][heartpole.records.run_summary]'s line, solved by regret (``solved_by``) or the env's bar."""
     if solved_by is None:
         bar = env_solved_bar(config.env_id, config.env_kwargs)
-        solved_by, bar = meets_bar(evaluation, bar), bar
+        solved_by = meets_bar(evaluation, bar)
     else:
         bar = {"regret_at_most": solved.SOLVED_REGRET}
     return {

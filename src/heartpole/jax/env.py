@@ -257,7 +257,7 @@ class HeartPoleJax:
         if self.population is not None:
             chooser = RNG.uniform(low, high, draw, n + 1)
             person, values = self.population.draw(jax.random.fold_in(key, 3 + 2 * draw), chooser)
-            if self.population.cohort_values is not None:
+            if not self._carries_values():
                 values = jnp.zeros(0, jnp.float32)  # a cohort's person is their index (`person_values`)
         noise_key = jax.random.fold_in(key, 2 + 2 * draw)
         return self.start(noise_key, person, values, RNG.wake_uniform(low, high, draw, n), params)
@@ -425,9 +425,8 @@ class HeartPoleJax:
     def person_values(self, state: EnvState) -> jax.Array:
         """The values of ``state``'s person, one per column of ``people.columns`` (float32): a cohort member's
         row of the cohort, a distribution's person's as drawn (``state.person_values``); empty without people."""
-        if self.population is not None and self.population.cohort_values is not None:
-            return self.population.cohort_values[state.person]
-        return state.person_values
+        cohort = None if self.population is None else self.population.cohort_values
+        return state.person_values if cohort is None else cohort[state.person]
 
     def _carries_values(self) -> bool:
         """Whether `EnvState.person_values` holds the person's values (a distribution's person)."""
