@@ -321,7 +321,7 @@ def anatomy(env_id: str, n: int, anchor: float) -> None:
 
     def loop() -> None:
         tables = (dynamics.packed, dynamics.layout, dynamics.selection)
-        kernel.step_envs(env._envs, kernel.new_results(n), indices, env._rng, *tables)
+        kernel.step_envs(env._envs, kernel.new_results(n, len(env._envs)), indices, env._rng, *tables)
 
     compiled, copy = best_time(loop), best_time(lambda: env._envs.copy())
     print(

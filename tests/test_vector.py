@@ -142,6 +142,24 @@ def test_observations_are_copies_in_cartpoles_column_major_layout() -> None:
         obs = env.step(np.array([0, 1, 2, 3, 1]))[0]
 
 
+@pytest.mark.parametrize("people", [None, "default"])
+def test_an_observation_handed_out_stays_as_it_was_through_later_steps_and_restarts(people) -> None:
+    env = make(7, max_steps=3, people=people)  # the loop writes each step's observations into a fresh array
+    handed = [env.reset(seed=0)[0]]
+    for t in range(8):  # restarts (NEXT_STEP) at steps 4 and 8
+        handed.append(env.step(np.arange(7) % 4)[0])
+        if t == 5:
+            handed.append(env.reset(seed=1, options={"reset_mask": np.arange(7) < 3})[0])
+    kept = [obs.copy() for obs in handed]
+    env.step(np.arange(7) % 4)
+    env.reset(seed=2)
+    for obs, copy_of_it in zip(handed, kept):
+        np.testing.assert_array_equal(obs, copy_of_it)
+    assert len({id(obs) for obs in handed}) == len(handed) and not any(
+        np.shares_memory(a, b) for i, a in enumerate(handed) for b in handed[i + 1 :]
+    )
+
+
 def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> None:
     env = make(4, max_steps=3, render_mode="rgb_array", heart_attack_proclivity=1.0)
     always_sleep = np.full(4, 3, dtype=np.intp)  # the dtype the env works in: no conversion copies it

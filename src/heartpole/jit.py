@@ -1,5 +1,6 @@
-"""numba's options for HeartPole's compiled code (its disk cache, the options every ``njit`` passes) and two
-small tools of its loops over envs: [`one`][heartpole.jit.one] and [`wide_vectors`][heartpole.jit.wide_vectors].
+"""numba's options for HeartPole's compiled code (its disk cache, the options every ``njit`` passes) and three
+small tools of its loops over envs: [`one`][heartpole.jit.one], [`wide_vectors`][heartpole.jit.wide_vectors] and
+[`no_alias`][heartpole.jit.no_alias].
 
 Compiled code is cached on disk (numba's ``cache=True``): the first use after an install compiles for a
 few seconds, later processes load it. Where numba can write nowhere (a read-only install run by a user with
@@ -154,3 +155,25 @@ wide_vectors: Any = _wide_vectors_intrinsic
 """Called first in a loop's compiled function: LLVM may vectorise that function `VECTOR_WIDTH` bits wide."""
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     wide_vectors = lambda: None  # noqa: E731
+
+
+@intrinsic
+def _no_alias_intrinsic(typingctx: Any) -> Any:
+    """Tell LLVM that no two pointer arguments of the calling function overlap (``noalias``, which numba's own
+    ``noalias`` flag adds for its parallel loops): it then vectorises a loop that reads some arrays and writes
+    others without checks at run time (with them, it gives up: too many pairs of arrays to check)."""
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        for argument in context.call_conv.get_arguments(builder.function):
+            if argument.type.is_pointer:
+                argument.add_attribute("noalias")
+        return context.get_dummy_value()
+
+    return nbtypes.none(), codegen
+
+
+no_alias: Any = _no_alias_intrinsic
+"""Called first in a loop's compiled function: its array arguments do not overlap. The loops' callers pass arrays
+of their own (the states, generator states and cells of their envs, fresh results and observations)."""
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
+    no_alias = lambda: None  # noqa: E731

@@ -39,7 +39,7 @@ from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 from heartpole import jit, lanes, model
 from heartpole import rng as random_numbers  # the module; ``rng`` names envs' generator states here
 from heartpole.jit import CACHE as CACHE  # numba's disk cache, for the package's other compiled code
-from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on, one, wide_vectors
+from heartpole.jit import INLINE, JIT, JitOptions, cache_keyed_on, no_alias, one, wide_vectors
 from heartpole.lanes import F32, U32, U64, add32, exp32, mul32, shr32, where, xor32
 
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments
@@ -114,9 +114,12 @@ OUTPUTS = {
 """The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
 
 
-def new_results(count: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`)."""
-    return tuple(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values())
+def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
+    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`), then
+    for a copy of their new states, ``(num_variables, count)`` float32: the observations, written by the loop
+    while it holds them (a copy afterwards would read the states again)."""
+    observed = np.empty((num_variables, count), dtype=np.float32)
+    return (*(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values()), observed)
 
 
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
@@ -418,11 +421,13 @@ def action_effects(table: Any, width: Any, layout: Any, action: Any, zeros: Any,
 
 @njit(**JIT, **INLINE)
 def store_env(envs: Any, results: Any, rng: Any, i: Any, outcome: Any) -> None:
-    """Env ``i``'s step ``outcome`` (the model's step's tuple) into place: its new state into ``envs[:, i]``,
-    its draw counted in ``rng``, its results into ``results[k][i]``."""
+    """Env ``i``'s step ``outcome`` (the model's step's tuple) into place: its new state into ``envs[:, i]`` and
+    ``results[5][:, i]``, its draw counted in ``rng``, its results into ``results[k][i]``."""
     state, reward, worked, risk, attack, new_score = outcome
     for v in range(len(state)):
-        envs[U64(v), i] = stored(v, state[v])
+        x = stored(v, state[v])
+        envs[U64(v), i] = x
+        results[5][U64(v), i] = x
     rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
     results[0][i] = reward
     results[1][i] = worked
@@ -435,6 +440,7 @@ def store_env(envs: Any, results: Any, rng: Any, i: Any, outcome: Any) -> None:
 def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     wide_vectors()
+    no_alias()
     zeros, tables = _unpack(packed, layout)
     table, width = _action_table(packed, layout, zeros), U64(_row_width(len(zeros)))
     for index in range(actions.shape[0]):
@@ -447,7 +453,7 @@ def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, lay
 @njit(**JIT)
 def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
     """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
-    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order (`new_results`).
+    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order and then a copy of the states (`new_results`).
 
     The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
@@ -462,7 +468,7 @@ def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any, selecti
     """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
     ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
     loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)
     _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 

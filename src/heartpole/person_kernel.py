@@ -8,7 +8,7 @@ no formula of its own) with those numbers read per env from two arguments:
 
 * ``cells``, ``(columns, num_envs)`` float32: row ``c`` holds every env's value of column ``c`` (numbers equal
   for every person share a column: HeartPole's two fading variables fade alike). Each varying number costs one
-  contiguous load per env (LLVM vectorises them: the loop's arrays are declared not to overlap, `_no_alias`);
+  contiguous load per env (LLVM vectorises them: the loop's arrays are declared not to overlap, `heartpole.jit.no_alias`);
   the shared numbers are read once, as in the v0 loop. (Gathering each env's numbers from a table of the
   people by person index, as before, added about twice as much time to the v0 loop at 16,384 envs.)
 * ``overlay`` ([`overlay_for`][heartpole.person_kernel.overlay_for]): an empty array whose structured dtype says which
@@ -35,7 +35,7 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic, overload
 
 from heartpole import jit, kernel, model
-from heartpole.jit import INLINE, JIT, cache_keyed_on, one, wide_vectors
+from heartpole.jit import INLINE, JIT, cache_keyed_on, no_alias, one, wide_vectors
 from heartpole.kernel import to_fixed_tuple, tuple_setitem
 from heartpole.lanes import F32, U32, U64, add32, where
 
@@ -84,28 +84,9 @@ def _data_intrinsic(typingctx: Any, array: Any) -> Any:
     return pointer(nbtypes.float32)(array), codegen
 
 
-@intrinsic
-def _no_alias_intrinsic(typingctx: Any) -> Any:
-    """Tell LLVM that no two pointer arguments of the calling function overlap (``noalias``, which numba's own
-    ``noalias`` flag adds for its parallel loops): it then vectorises a loop reading the cells, another array
-    than those it writes, without checks at run time (with them, it gives up: too many pairs of arrays to
-    check). The loops' callers pass arrays of their own: the states, generator states and cells of their envs,
-    fresh results."""
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        for argument in context.call_conv.get_arguments(builder.function):
-            if argument.type.is_pointer:
-                argument.add_attribute("noalias")
-        return context.get_dummy_value()
-
-    return nbtypes.none(), codegen
-
-
 _data: Any = _data_intrinsic
-_no_alias: Any = _no_alias_intrinsic
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _data = lambda array: array.ravel()  # noqa: E731
-    _no_alias = lambda: None  # noqa: E731
 
 
 def _setter(table: type[tuple[Any, ...]], fields: model.TableFields, num_variables: int, column: int) -> Any:
@@ -207,7 +188,7 @@ def _loop(
 ) -> None:
     """The loop over envs of `step_envs`, which `step_one` runs over one env."""
     wide_vectors()
-    _no_alias()
+    no_alias()
     zeros, shape = _shape(layout)
     width = U64(_row_width(len(zeros)))
     shared = kernel.read_tables(flat, U64(len(layout[2])) * width, zeros, shape)
@@ -234,7 +215,7 @@ def _step_one(
     envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
 ) -> Any:
     """`step_one`'s compiled part: the loop over one env."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)))
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)
     _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 

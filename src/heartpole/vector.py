@@ -252,12 +252,12 @@ class HeartPoleVectorEnv(VectorEnv):
                 'DISABLED: reset them first, with reset(options={"reset_mask": mask})'
             )
         n = self.num_envs
-        results = kernel.new_results(n)  # fresh: they go out as they are
+        results = kernel.new_results(n, len(self._envs))  # fresh: they go out as they are
         stepped = restart is None or not restart.all()
         if stepped:
             loop = self._loop or self._plan_loop(results, action)
             loop(self._envs, results, action, self._rng, *self._loop_arguments)
-        reward, worked, risk, attack, new_score = results
+        reward, worked, risk, attack, new_score, observed = results
         present = self._everyone.copy()  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
         for key, mask, value in zip(INFO_KEYS, INFO_MASKS, (action, attack, risk, worked, new_score)):
@@ -276,7 +276,9 @@ class HeartPoleVectorEnv(VectorEnv):
         if self._seen is not None:
             self._seen.step(self._envs.T, restart)
         self._person_info(info, present)
-        obs, self._ended = self._observations(), None
+        # the loop's copy of the states is the observation unless some env restarted or the observer adds to it
+        copied = stepped and restart is None and self._observer.plain
+        obs, self._ended = observed.T if copied else self._observations(), None
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
