@@ -116,10 +116,8 @@ OUTPUTS = {
 
 def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
     """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`), then
-    for a copy of their new states, ``(num_variables, count)`` float32: the observations, written by the loop
-    while it holds them (a copy afterwards would read the states again)."""
-    observed = np.empty((num_variables, count), dtype=np.float32)
-    return (*(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values()), observed)
+    for the loop's copy of the new states (the observations), ``(num_variables, count)`` float32."""
+    return (*(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values()), np.empty((num_variables, count), np.float32))
 
 
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
@@ -359,10 +357,9 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
 
 SELECTED_NUMBERS = 64
 """Up to this many numbers named by the selection (`selection_for`), the loop over envs selects each env's action
-effects with masks (`select`); with more, it reads them from the action table with gathers (masks outgrow the
-registers). At 16,384 envs on the project's 2-core AMD EPYC: v0 (11 numbers) 58 us a step with masks, v1 (8
-actions, 33 numbers) 100 us with masks, 165 us with gathers. A mask per action and number (v1: about 200),
-as before the selection, made LLVM give up vectorising (5,000 us)."""
+effects with masks (`select`); with more, with gathers (masks outgrow the registers). At 16,384 envs on our AMD
+EPYC: v0 (11 numbers) 58 us a step with masks, v1 (33) 100 us with masks, 165 us with gathers. A mask per
+action and number (v1: about 200), as before the selection, made LLVM give up vectorising (5,000 us)."""
 
 
 def masked(selection: Any) -> bool:
