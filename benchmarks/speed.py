@@ -316,12 +316,11 @@ def anatomy(env_id: str, n: int, anchor: float) -> None:
     env.max_steps = 10**9  # no restart while timing
     dynamics = env.dynamics
     actions = np.random.default_rng(0).integers(0, len(dynamics.actions), size=n)
-    indices = actions.astype(kernel.ACTION_DTYPE)
     whole = best_time(lambda: env.step(actions))
 
     def loop() -> None:
         tables = (dynamics.packed, dynamics.layout, dynamics.selection)
-        kernel.step_envs(env._envs, kernel.new_results(n, len(env._envs)), indices, env._rng, *tables)
+        kernel.step_envs(env._envs, kernel.new_results(n, len(env._envs)), actions, env._rng, *tables)
 
     compiled, copy = best_time(loop), best_time(lambda: env._envs.copy())
     print(

@@ -114,10 +114,19 @@ OUTPUTS = {
 """The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
 
 
+_OUTPUT_DTYPES = tuple(OUTPUTS.values())
+
+
 def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
     """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`), then
-    for the loop's copy of the new states (the observations), ``(num_variables, count)`` float32."""
-    return (*(np.empty(count, dtype=dtype) for dtype in OUTPUTS.values()), np.empty((num_variables, count), np.float32))
+    for the loop's copy of the new states (the observations), ``(num_variables, count)`` float32, and for the
+    actions as `ACTION_DTYPE`."""
+    empty = np.empty
+    return (
+        *[empty(count, dtype) for dtype in _OUTPUT_DTYPES],
+        empty((num_variables, count), np.float32),
+        empty(count, ACTION_DTYPE),
+    )
 
 
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
@@ -381,9 +390,9 @@ def _masked(selection: Any) -> Any:
 
 @njit(**JIT)
 def convert_actions(actions: Any, count: Any, out: Any) -> bool:
-    """Whether every one of ``actions`` (unsigned: a view of signed ones makes negatives huge) is below ``count``,
-    converting them into ``out`` as `ACTION_DTYPE` meanwhile: one pass, where NumPy's check and conversion take
-    two. ``out`` is of no use where they are not."""
+    """Whether every one of the integers ``actions`` is at least 0 and below ``count`` (compared as unsigned:
+    negatives become huge), converting them into ``out`` as `ACTION_DTYPE` meanwhile: one pass, where NumPy's
+    check and conversion take two. ``out`` is of no use where they are not."""
     largest = U64(0)
     for i in range(actions.shape[0]):
         largest = max(largest, U64(actions[i]))
@@ -448,16 +457,21 @@ def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, lay
 
 
 @njit(**JIT)
-def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
+def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> bool:
     """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
-    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order and then a copy of the states (`new_results`).
+    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order, then a copy of the states and the actions as
+    `ACTION_DTYPE` (`new_results`). First the actions (integers of any type) are checked and converted
+    (`convert_actions`): where one is not an action, nothing changes and the answer is False.
 
     The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
     ``packed``, ``layout`` and ``selection`` are [`pack`][heartpole.kernel.pack]'s,
     [`layout`][heartpole.kernel.layout]'s and [`selection_for`][heartpole.kernel.selection_for]'s.
     """
-    _step_envs(envs, results, actions, rng, packed, layout, selection)
+    if not convert_actions(actions, len(layout[2]), results[6]):
+        return False
+    _step_envs(envs, results, results[6], rng, packed, layout, selection)
+    return True
 
 
 @njit(**JIT)

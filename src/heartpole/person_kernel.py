@@ -206,10 +206,13 @@ def _loop(
 @njit(**JIT)
 def step_envs(
     envs: Any, results: Any, actions: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
-) -> None:
+) -> bool:
     """[`step_envs`][heartpole.kernel.step_envs] with each env's own numbers: ``flat`` the packed tables
     raveled, ``cells`` and ``overlay`` as the module docstring says. No two of the arrays may overlap."""
-    _loop(envs, results, actions, rng, flat, layout, cells, overlay, selection)
+    if not kernel.convert_actions(actions, len(layout[2]), results[6]):
+        return False
+    _loop(envs, results, results[6], rng, flat, layout, cells, overlay, selection)
+    return True
 
 
 @njit(**JIT)

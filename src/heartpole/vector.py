@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -29,6 +30,7 @@ from heartpole.model import Variable, check_integer
 from heartpole.observation import Observer, Seen, observe
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
+from heartpole.recycling import Recycler
 
 INFO_KEYS = tuple(RESET_INFO)
 """The keys of a step's and a reset's ``info`` (each with its ``_key`` mask): the single env's."""
@@ -164,6 +166,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._cells = None if self._persons is None else self._persons.cells(self.num_envs)
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
+        self._results = Recycler(functools.partial(kernel.new_results, self.num_envs, len(self.dynamics.variables)))
         self._loop: Any = None  # the compiled loop over envs, planned at the first step (`_plan_loop`)
         self._loop_arguments: tuple[Any, ...] = ()
 
@@ -242,22 +245,20 @@ class HeartPoleVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with its action; see the class docstring for autoreset and ``info``."""
-        action = self._validate(actions)
-        if not self._started:
-            raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
+        array = self._integers(actions)
         restart = self._ended
-        if restart is not None and self.autoreset_mode == AutoresetMode.DISABLED:
-            raise EpisodeEndedError(
-                f"the episodes of envs {np.flatnonzero(restart).tolist()} have ended and autoreset_mode is "
-                'DISABLED: reset them first, with reset(options={"reset_mask": mask})'
-            )
+        if not self._started or (restart is not None and self.autoreset_mode == AutoresetMode.DISABLED):
+            self._refuse(array, actions)
         n = self.num_envs
-        results = kernel.new_results(n, len(self._envs))  # fresh: they go out as they are
+        results = self._results()  # they go out as they are: new, or the last step's if nobody holds them
+        reward, worked, risk, attack, new_score, observed, action = results
         stepped = restart is None or not restart.all()
-        if stepped:
-            loop = self._loop or self._plan_loop(results, action)
-            loop(self._envs, results, action, self._rng, *self._loop_arguments)
-        reward, worked, risk, attack, new_score, observed = results
+        if stepped:  # the loop checks the actions and converts them into `action` before it changes anything
+            loop = self._loop or self._plan_loop(results, array)
+            if not loop(self._envs, results, array, self._rng, *self._loop_arguments):
+                self._refuse(array, actions)
+        elif not kernel.convert_actions(array, self._num_actions, action):
+            self._refuse(array, actions)
         present = self._everyone.copy()  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
         for key, mask, value in zip(INFO_KEYS, INFO_MASKS, (action, attack, risk, worked, new_score)):
@@ -400,30 +401,40 @@ class HeartPoleVectorEnv(VectorEnv):
             )
         return mask.copy()
 
-    def _validate(self, actions: Any) -> np.ndarray:
-        """The actions as the kernel's index array (a copy), or ``ValueError`` naming what is wrong and what
-        is accepted."""
+    def _integers(self, actions: Any) -> np.ndarray:
+        """The actions as a C-contiguous int64 array (the type the compiled loop is planned for: itself where it
+        is one, else a copy), or ``ValueError`` where they are not integers of shape ``(num_envs,)``. Their values
+        are checked by the loop (`_refuse` says what is wrong)."""
         array = actions if type(actions) is np.ndarray else np.asarray(actions)
         dtype = array.dtype
         if array.shape != self._action_shape or dtype.kind not in "iu":
             got = f"shape {array.shape}" if array.shape != self._action_shape else f"dtype {dtype}"
             raise ValueError(f"HeartPoleVectorEnv.step expects {self._expected_actions()}; got {got}")
-        unsigned = array if dtype.kind == "u" else array.view(UNSIGNED[dtype.itemsize])  # negatives become huge
-        converted = np.empty(self.num_envs, dtype=kernel.ACTION_DTYPE)  # contiguous, as the loop was planned for
-        if not kernel.convert_actions(unsigned, self._num_actions, converted):
+        if dtype == np.int64 and array.flags.carray:  # aligned, writeable and C-contiguous: as planned
+            return array
+        return array.astype(np.int64, order="C")  # uint64's largest wrap around, and back in the loop's check
+
+    def _refuse(self, array: np.ndarray, actions: Any) -> None:
+        """Raise what ``step`` raises before it steps, with nothing changed: ``ValueError`` where ``array`` (the
+        ``actions`` given, as `_integers` made them) holds values that are not actions, else ``ResetNeeded``
+        before the first reset, else `EpisodeEndedError` (see ``step``)."""
+        if not kernel.convert_actions(array, self._num_actions, np.empty(self.num_envs, kernel.ACTION_DTYPE)):
+            given = np.asarray(actions)
             raise ValueError(
-                f"HeartPoleVectorEnv.step expects {self._expected_actions()}; got values from {array.min()} to "
-                f"{array.max()}"
+                f"HeartPoleVectorEnv.step expects {self._expected_actions()}; got values from {given.min()} to "
+                f"{given.max()}"
             )
-        return converted
+        if not self._started:
+            raise ResetNeeded("call reset() before step() in HeartPoleVectorEnv")
+        assert self._ended is not None
+        raise EpisodeEndedError(
+            f"the episodes of envs {np.flatnonzero(self._ended).tolist()} have ended and autoreset_mode is "
+            'DISABLED: reset them first, with reset(options={"reset_mask": mask})'
+        )
 
     def _expected_actions(self) -> str:
         """What ``step`` accepts, in words."""
         return f"an integer array of shape ({self.num_envs},) with values in 0..{self._num_actions - 1}"
-
-
-UNSIGNED = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}
-"""The unsigned integer type of each signed one's size in bytes: a view of negative values as huge ones."""
 
 
 def _rows(sample: Sample, which: np.ndarray) -> Sample:
