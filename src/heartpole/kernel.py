@@ -114,21 +114,6 @@ OUTPUTS = {
 """The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
 
 
-_OUTPUT_DTYPES = tuple(OUTPUTS.values())
-
-
-def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs (`OUTPUTS`), then
-    for the loop's copy of the new states (the observations), ``(num_variables, count)`` float32, and for the
-    actions as `ACTION_DTYPE`."""
-    empty = np.empty
-    return (
-        *[empty(count, dtype) for dtype in _OUTPUT_DTYPES],
-        empty((num_variables, count), np.float32),
-        empty(count, ACTION_DTYPE),
-    )
-
-
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
 """Per table (`EFFECTS`, `TABLES`): how many numbers its row holds per variable, and besides."""
 
@@ -460,8 +445,8 @@ def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, lay
 def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> bool:
     """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
     ``results[k][i]``, a tuple of arrays in `OUTPUTS` order, then a copy of the states and the actions as
-    `ACTION_DTYPE` (`new_results`). First the actions (integers of any type) are checked and converted
-    (`convert_actions`): where one is not an action, nothing changes and the answer is False.
+    `ACTION_DTYPE` ([`new_results`][heartpole.arrays.new_results]). First the actions (integers of any type) are
+    checked and converted (`convert_actions`): where one is not an action, nothing changes and the answer is False.
 
     The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.

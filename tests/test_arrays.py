@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-from heartpole.recycling import Recycler
+from heartpole.arrays import LINE, PAGE, SPACING, Recycler, new_results, staggered
 
 
 def make_arrays() -> tuple[np.ndarray, ...]:
@@ -28,8 +28,9 @@ def test_arrays_nobody_holds_come_back_after_the_two_steps_a_loop_holds() -> Non
     assert [id(a) for a in third] == first_id
     held = recycler()  # `second` and `third` are still held: new arrays
     assert not {id(a) for a in held} & {id(a) for a in (*second, *third)}
+    newest = [id(a) for a in held]
     del second, third, held
-    assert {id(a) for a in recycler()} <= set(first_id) | {id(a) for a in recycler._kept[0]}
+    assert [id(a) for a in recycler()] == newest  # the newest of those kept (two), the likeliest in the caches
 
 
 @pytest.mark.parametrize(
@@ -97,3 +98,35 @@ def run(mode: AutoresetMode, people: str | None, keep: bool) -> list[object]:
 @pytest.mark.parametrize("people", [None, "default"])
 def test_episodes_are_the_same_whether_the_caller_keeps_its_arrays_or_drops_them(mode, people) -> None:
     assert run(mode, people, keep=True) == run(mode, people, keep=False)
+
+
+@pytest.mark.parametrize("people", [None, "default"])
+def test_a_loop_that_drops_each_steps_arrays_gets_two_sets_back_for_ever(people) -> None:
+    env = gym.make_vec("HeartPole-v0", num_envs=3, vectorization_mode="vector_entry_point", people=people).unwrapped
+    made = []
+    make = env._results._make
+    env._results._make = lambda: made.append(1) or make()
+    obs, _ = env.reset(seed=0)
+    for _ in range(30):  # as a training loop: the last step's arrays are held while the next is made
+        obs, reward, terminated, truncated, info = env.step(np.zeros(3, dtype=np.int64))
+    assert len(made) == 2
+    for _ in range(30):  # and one that drops them at once
+        env.step(np.zeros(3, dtype=np.int64))
+    assert len(made) == 2
+
+
+def test_staggered_arrays_start_where_asked_in_one_block_a_page_apart() -> None:
+    specs = [((5,), np.float32), ((3, 7), np.uint32), ((0,), np.bool_), ((16384,), np.int32)]
+    made = staggered(specs, 60)
+    for k, ((shape, dtype), array) in enumerate(zip(specs, made)):
+        assert array.shape == shape and array.dtype == dtype and array.flags.carray
+        assert array.size == 0 or array.ctypes.data % PAGE == (60 + k * SPACING) * LINE % PAGE
+    assert len({id(array.base) for array in made}) == 1
+    assert made[0].base.nbytes == 7 * PAGE + 16384 * 4
+
+
+def test_a_step_keeps_its_observations_in_a_block_of_their_own() -> None:
+    reward, productivity, risk, attack, score, observed, actions = new_results(100, 6)
+    assert observed.shape == (6, 100) and observed.base.nbytes == 3 * PAGE
+    assert {id(a.base) for a in (reward, productivity, risk, attack, score, actions)} == {id(reward.base)}
+    assert [a.dtype for a in (reward, attack, actions)] == [np.float32, np.bool_, np.int32]
