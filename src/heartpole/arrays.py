@@ -76,7 +76,7 @@ def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
 
 def _counts(arrays: list[np.ndarray]) -> tuple[int, ...]:
     """The reference counts of ``arrays``, as this very code sees them (its own references included)."""
-    return tuple(sys.getrefcount(array) for array in arrays)
+    return tuple(map(sys.getrefcount, arrays))
 
 
 class Recycler:
