@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
+import heartpole.arrays
 from heartpole.arrays import LINE, PAGE, SPACING, Recycler, new_results, staggered
 
 
@@ -130,3 +131,12 @@ def test_a_step_keeps_its_observations_in_a_block_of_their_own() -> None:
     assert observed.shape == (6, 100) and observed.base.nbytes == 3 * PAGE
     assert {id(a.base) for a in (reward, productivity, risk, attack, score, actions)} == {id(reward.base)}
     assert [a.dtype for a in (reward, attack, actions)] == [np.float32, np.bool_, np.int32]
+
+
+def test_without_reference_counts_to_trust_nothing_comes_back(monkeypatch) -> None:
+    monkeypatch.setattr(heartpole.arrays, "COUNTED", False)
+    made = []
+    recycler = Recycler(lambda: made.append(1) or make_arrays())
+    for _ in range(4):
+        recycler()  # dropped at once: CPython would hand the same arrays back
+    assert len(made) == 4

@@ -74,6 +74,12 @@ def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
     return (*outputs, observations, actions)  # two blocks: a caller who keeps the observations keeps no more
 
 
+COUNTED = sys.implementation.name == "cpython" and getattr(sys, "_is_gil_enabled", lambda: True)()
+"""Whether reference counts say who holds an array: on CPython with its GIL. Elsewhere (PyPy, a free-threaded
+build, whose counts are deferred and split between threads) a [`Recycler`][heartpole.arrays.Recycler] never
+reuses arrays."""
+
+
 def _counts(arrays: list[np.ndarray]) -> tuple[int, ...]:
     """The reference counts of ``arrays``, as this very code sees them (its own references included)."""
     return tuple(map(sys.getrefcount, arrays))
@@ -100,7 +106,8 @@ class Recycler:
     def __call__(self) -> tuple[np.ndarray, ...]:
         """Arrays for this step: an earlier step's if nobody else holds any of them, else new ones."""
         kept = self._kept
-        for index in range(len(kept) - 1, -1, -1):  # the newest first: the likeliest to be in the caches still
+        newest = len(kept) - 1 if COUNTED else -1  # the newest first: the likeliest to be in the caches still
+        for index in range(newest, -1, -1):
             arrays = kept[index]
             if _counts(arrays) == self._alone:
                 kept.append(kept.pop(index))
