@@ -101,6 +101,10 @@ BAD_ACTIONS = [
     (np.array([0.0, 1.0, 2.0, 3.0]), "dtype"),
     (np.array([0, 1, 2, 4]), "values"),
     (np.array([0, -1, 2, 3]), "values"),
+    (np.array([0, -1, 2, 3], dtype=np.int8), "values"),  # converted to int64 first: still negative
+    (np.array([0, 1, 2, 2**64 - 1], dtype=np.uint64), "values"),  # wraps to -1 as int64, huge again in the check
+    (np.array([0, 1, 2, 2**63 + 2], dtype=np.uint64), "values"),
+    (np.array([0, 1, 2, 4], dtype=np.uint8), "values"),
     (["a", "b", "c", "d"], "dtype"),
     (3, "shape"),
 ]
@@ -117,6 +121,33 @@ def test_bad_action_batches_raise_and_change_nothing(actions, what: str) -> None
     np.testing.assert_array_equal(env.state, untouched.state)
     good = np.array([0, 1, 2, 3])
     assert env.step(good)[0].tobytes() == untouched.step(good)[0].tobytes()
+
+
+def test_actions_of_any_integer_type_and_layout_step_as_int64_ones_do() -> None:
+    base = np.array([3, 0, 2, 1])
+    read_only = base.copy()
+    read_only.flags.writeable = False
+    given = [
+        base.astype(np.int8),
+        base.astype(np.uint16),
+        base.astype(np.uint64),
+        np.repeat(base, 2)[::2],  # not contiguous
+        read_only,
+        base.astype(">i8"),  # big-endian
+        base.tolist(),
+    ]
+    reference = make(4)
+    reference.reset(seed=2)
+    reference.step(base)
+    expected = reference.step(base)
+    for actions in given:
+        env = make(4)
+        env.reset(seed=2)
+        env.step(base)  # the compiled loop is planned for C-contiguous int64 actions
+        obs, reward, _, _, info = env.step(actions)
+        np.testing.assert_array_equal(obs, expected[0])
+        np.testing.assert_array_equal(reward, expected[1])
+        assert info["action_taken"].tolist() == base.tolist() and info["action_taken"].dtype == np.int32
 
 
 def test_step_before_reset_and_bad_construction() -> None:

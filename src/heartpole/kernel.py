@@ -464,7 +464,7 @@ def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any, selecti
     """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
     ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
     loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)  # copy: the state
     _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 

@@ -220,7 +220,7 @@ def _step_one(
     envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
 ) -> Any:
     """`step_one`'s compiled part: the loop over one env."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)
+    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)  # copy: the state
     _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay, selection)
     return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
 
