@@ -70,6 +70,25 @@ def test_a_cohort_member_runs_on_exactly_their_params() -> None:
         assert leaves_equal(jax.tree_util.tree_map(lambda x, i=index: x[i], batch), own), person.name
 
 
+def test_a_cohort_steps_on_each_members_action_row_read_by_index() -> None:
+    """Under jit (person and action traced), the effects and tables a cohort's step reads by ``[person, action]``
+    equal bit for bit those of an env made with that person's values; entries no person sets come from the
+    params given (a changed field is followed)."""
+    people = People.default()
+    env, params = make("HeartPole-v0", people=people)
+    changed = params.replace(effect_low=params.effect_low + 0.25, heart_attack_penalty=jnp.float32(50.0))
+    inputs = jax.jit(env._inputs)
+    for index, person in enumerate(people.cohort):
+        own = make("HeartPole-v0", **person.values())[1]
+        own = own.replace(effect_low=own.effect_low + 0.25, heart_attack_penalty=jnp.float32(50.0))
+        state = EnvState(tuple(jnp.zeros(6)), jnp.int32(0), jnp.int32(index))
+        for action in range(4):
+            effects, tables = inputs(state, changed, jnp.int32(action))
+            own_effects, own_tables = env._effects(own, action), env._tables(own)
+            assert jax.tree_util.tree_all(jax.tree_util.tree_map(np.array_equal, effects, own_effects)), person.name
+            assert jax.tree_util.tree_all(jax.tree_util.tree_map(np.array_equal, tables, own_tables)), person.name
+
+
 def test_a_cohort_of_one_steps_exactly_as_that_persons_env() -> None:
     """A cohort of one is the env made with that person's values: the same reset from the same key (a cohort's
     person is picked by a uniform apart from the wake-up one), the same steps."""
