@@ -79,12 +79,13 @@ def test_a_cohort_steps_on_each_members_action_row_read_by_index() -> None:
     changed = params.replace(effect_low=params.effect_low + 0.25, heart_attack_penalty=jnp.float32(50.0))
     inputs = jax.jit(env._inputs)
     for index, person in enumerate(people.cohort):
-        own = make("HeartPole-v0", **person.values())[1]
+        own_env, own = make("HeartPole-v0", **person.values())
         own = own.replace(effect_low=own.effect_low + 0.25, heart_attack_penalty=jnp.float32(50.0))
         state = EnvState(tuple(jnp.zeros(6)), jnp.int32(0), jnp.int32(index))
+        own_state = EnvState(tuple(jnp.zeros(6)), jnp.int32(0))
         for action in range(4):
             effects, tables = inputs(state, changed, jnp.int32(action))
-            own_effects, own_tables = env._effects(own, action), env._tables(own)
+            own_effects, own_tables = own_env._inputs(own_state, own, jnp.int32(action))
             assert jax.tree_util.tree_all(jax.tree_util.tree_map(np.array_equal, effects, own_effects)), person.name
             assert jax.tree_util.tree_all(jax.tree_util.tree_map(np.array_equal, tables, own_tables)), person.name
 

@@ -269,7 +269,7 @@ class HeartPoleJax:
         that wakes up with ``uniform``; ``key`` draws the first measurement's noise (with ``measurement``)."""
         zeros = (jnp.float32(0.0),) * self.num_variables
         state = EnvState(variables=zeros, time=jnp.int32(0), person=person, person_values=values)
-        tables = self._tables(self.person_params(state, params))
+        tables = self._tables(self.person_params(state, params).tables)
         state = dataclasses.replace(state, variables=_floats(MODEL.initial_state(zeros, uniform, tables)))
         if self.sensor is not None:
             state = dataclasses.replace(state, seen=jnp.stack(state.variables), age=jnp.float32(0.0))
@@ -467,19 +467,15 @@ class HeartPoleJax:
         third faster (84 fused kernels where it made 92), on a GPU as fast (docs/jax.md, "People on a GPU")."""
         if self.population is None:
             params = jax.lax.optimization_barrier(params)
-            return self._effects(params, action), self._tables(params)
-        person = (state.person, state.person_values)
-        row, tables = self.population.params_of(params.effects, params.tables, *person, action)
-        return self._as_tuples(row, EFFECTS), self._as_tuples(tables, TABLES)._replace(**self._shape)
+            row, tables = jax.tree_util.tree_map(lambda table: table[action], params.effects), params.tables
+        else:
+            person = (state.person, state.person_values)
+            row, tables = self.population.params_of(params.effects, params.tables, *person, action)
+        return self._as_tuples(row, EFFECTS), self._tables(tables)
 
-    def _effects(self, params: EnvParams, action: Any) -> ActionEffects:
-        """The chosen action's row of ``params.effects``, a ``PerVariable`` field as a tuple."""
-        row = jax.tree_util.tree_map(lambda table: table[jnp.asarray(action, dtype=jnp.int32)], params.effects)
-        return self._as_tuples(row, EFFECTS)
-
-    def _tables(self, params: EnvParams) -> StepTables:
-        """``params.tables``, a ``PerVariable`` field as a tuple, the Shape fields the env's own."""
-        return self._as_tuples(params.tables, TABLES)._replace(**self._shape)
+    def _tables(self, tables: StepTables) -> StepTables:
+        """``tables`` (an ``EnvParams``'), a ``PerVariable`` field as a tuple, the Shape fields the env's own."""
+        return self._as_tuples(tables, TABLES)._replace(**self._shape)
 
     def _as_tuples(self, table: Any, fields: TableFields) -> Any:
         """``table`` with each ``PerVariable`` array as the tuple of its items, as the model's step reads it."""
