@@ -12,7 +12,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole.arrays
-from heartpole.arrays import LINE, PAGE, SPACING, Recycler, new_results, staggered
+from heartpole.arrays import LINE, PAGE, SLOTS, SPACING, Recycler, new_results, staggered
 
 
 def make_arrays() -> tuple[np.ndarray, ...]:
@@ -124,6 +124,18 @@ def test_staggered_arrays_start_where_asked_in_one_block_a_page_apart() -> None:
         assert array.size == 0 or array.ctypes.data % PAGE == (60 + k * SPACING) * LINE % PAGE
     assert len({id(array.base) for array in made}) == 1
     assert made[0].base.nbytes == 7 * PAGE + 16384 * 4
+
+
+@pytest.mark.parametrize("people", [None, "default"])
+def test_the_loops_own_arrays_start_at_their_slots_when_made_copied_and_pickled(people) -> None:
+    env = gym.make_vec("HeartPole-v0", num_envs=64, vectorization_mode="vector_entry_point", people=people)
+    env.reset(seed=0)
+    for made in (env.unwrapped, copy.deepcopy(env.unwrapped), pickle.loads(pickle.dumps(env.unwrapped))):
+        arrays = {"states": made._envs, "generators": made._rng, "cells": made._cells}
+        for slot, array in arrays.items():
+            if array is not None:
+                assert array.flags.carray and array.ctypes.data % PAGE == SLOTS[slot] * LINE % PAGE, slot
+        assert (made._cells is None) == (people is None)
 
 
 def test_a_step_keeps_its_observations_in_a_block_of_their_own() -> None:

@@ -147,8 +147,8 @@ class HeartPoleVectorEnv(VectorEnv):
         self._everyone = _read_only(np.ones(self.num_envs, dtype=bool))  # copied: faster than np.ones
         self.single_observation_space = self._observer.space(observation_space(self.dynamics))
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self._envs = placed(np.zeros((len(self.dynamics.variables), self.num_envs), np.float32), "states")
-        self._rng = placed(np.zeros((3, self.num_envs), dtype=np.uint32), "generators")
+        self._envs = np.zeros((len(self.dynamics.variables), self.num_envs), np.float32)  # the states
+        self._rng = np.zeros((3, self.num_envs), dtype=np.uint32)
         self._started = False
         # Env i has taken `_clock - _starts[i]` steps of its episode; the earliest episode ends at `_next_end`,
         # so a step tests one number, not an array, until an episode ends.
@@ -163,7 +163,8 @@ class HeartPoleVectorEnv(VectorEnv):
         self._person = _read_only(np.full(self.num_envs, -1, dtype=np.int64))
         self._traits = np.zeros((self.num_envs, 0 if self.people is None else len(self.people.traits)), np.float32)
         self._traits = _read_only(self._traits)
-        self._cells = None if self._persons is None else placed(self._persons.cells(self.num_envs), "cells")
+        self._cells = None if self._persons is None else self._persons.cells(self.num_envs)
+        self._place_apart()
         self._people_rng: np.random.Generator | None = None
         self._seen = None if self._observer.sensor is None else Seen(self._observer.sensor, self.num_envs)
         self._results = Recycler(functools.partial(new_results, self.num_envs, len(self.dynamics.variables)))
@@ -335,8 +336,13 @@ class HeartPoleVectorEnv(VectorEnv):
         return {**self.__dict__, "_loop": None, "_loop_arguments": ()}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        """Restore a pickled or copied env, its loop's arrays placed apart again (`heartpole.arrays.placed`)."""
+        """Restore a pickled or copied env, its loop's arrays placed apart again."""
         self.__dict__.update(state)
+        self._place_apart()
+
+    def _place_apart(self) -> None:
+        """The loop's own arrays (states, generator states, people's cells) copied to their places in the caches
+        (`heartpole.arrays.placed`)."""
         self._envs, self._rng = placed(self._envs, "states"), placed(self._rng, "generators")
         if self._cells is not None:
             self._cells = placed(self._cells, "cells")
