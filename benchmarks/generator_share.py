@@ -100,6 +100,8 @@ def main() -> None:
     parser.add_argument("--envs", type=int, default=16384, help="envs (default 16384)")
     parser.add_argument("--blocks", type=int, default=30, help="blocks of 25 steps per loop, in turn (default 30)")
     args = parser.parse_args()
+    if args.envs < 1 or args.blocks < 1:
+        parser.error(f"--envs and --blocks must be positive integers, got {args.envs} and {args.blocks}")
     actions = np.random.default_rng(0).integers(0, 4, args.envs)
     runs = []
     for loop in LOOPS.values():  # an env each: its arrays placed apart in the caches, as the env steps them
