@@ -55,7 +55,7 @@ not a certified optimum.
 Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
 program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
 never pay), `.drinking` (proclivity 0), `.history` (what the work and time so far are worth, measured),
-`.common` (what they share).
+`.whole` (the optimum over every policy, history included, with its bounds), `.common` (what they share).
 """
 
 from __future__ import annotations
@@ -73,6 +73,7 @@ from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_d
 from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regret, solve_people, split_people
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
+from .whole import HistoryOptimum, solve_history
 
 __all__ = [
     "COFFEE_CHECK_ALERTNESS",
@@ -84,6 +85,7 @@ __all__ = [
     "DrinkingGrid",
     "DrinkingSolution",
     "GridSolution",
+    "HistoryOptimum",
     "NotCoveredError",
     "OptimumSolution",
     "OracleRegret",
@@ -102,6 +104,7 @@ __all__ = [
     "sleep_rule_value",
     "solve",
     "solve_drinking",
+    "solve_history",
     "solve_params",
     "solve_people",
     "split_people",
