@@ -182,7 +182,6 @@ def _check(
 
 def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationResult]) -> str:
     """The solution's figures as a table, with the Monte-Carlo check if run."""
-    from heartpole.optimum.common import HISTORY_GAIN
     from heartpole.reporting import has_interval, missing_notes
 
     p = solution.params
@@ -190,7 +189,7 @@ def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationRe
         [
             "expected return (optimum)",
             f"{solution.expected_return:.5f}",
-            f"+- {solution.error_bound:.1e} (grid); history worth <= {HISTORY_GAIN:.0e} (measured)",
+            f"+- {solution.error_bound:.1e} (grid); history worth <= {solution.history_worth:.1e} (solved)",
         ],
         ["expected score (work / time)", f"{solution.expected_score:.5f}", ""],
         ["expected heart attacks / episode", f"{solution.expected_heart_attacks:.5f}", "the floor: never drink"],

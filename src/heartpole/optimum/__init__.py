@@ -40,11 +40,13 @@ What it does not cover, refused with a clear error: action sets other than v0's 
 naps, tea, exercise and cannabis), extra state variables, ``heart_attack_proclivity = 0`` or
 ``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where
 [`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] cannot rule drinks out. The solved policy sees ``(n,
-alertness, t)``, not the work and sleeps so far: it is the best of the policies that see those. An exact
-``E[work / time]`` optimum over all policies would also condition on the work and time so far; that is not solved.
-What it is worth was measured instead ([`heartpole.optimum.history`][heartpole.optimum.history]: about 1.2e-5 on
-v0), and regret intervals are widened by [`HISTORY_GAIN`][heartpole.optimum.common.HISTORY_GAIN] besides the grid's
-error ([`OptimumSolution.margin`][heartpole.optimum.solution.OptimumSolution.margin]).
+alertness, t)``, not the work and sleeps so far: it is the best of the policies that see those. The optimum over
+every policy, which also sees the work and sleeps so far, is solved by
+[`solve_history`][heartpole.optimum.whole.solve_history] (a program over day starts, its policy's exact value below
+and a bound above); what it adds is
+[`OptimumSolution.history_worth`][heartpole.optimum.solution.OptimumSolution] (about 1.2e-5 on v0, 4.3e-5 at 300
+decisions), and regret intervals are widened by it besides the grid's error
+([`OptimumSolution.margin`][heartpole.optimum.solution.OptimumSolution.margin]).
 
 Also here: [`sleep_rule_value`][heartpole.optimum.sleep.sleep_rule_value], the exact expected return of any no-drink
 sleep rule (``expert``'s regret without sampling), and [`solve_drinking`][heartpole.optimum.drinking.solve_drinking], a

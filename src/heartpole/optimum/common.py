@@ -9,20 +9,10 @@ import numpy as np
 
 from heartpole.model import Params, alertness_decay, productivity
 
-SOLVER_VERSION = 3
+SOLVER_VERSION = 4
 """Bumped whenever a saved solution would mean something else; caches of other versions are solved again
-(3: the thresholds end where the policy has settled, not at ``max_steps``)."""
+(3: the thresholds end where the policy has settled, not at ``max_steps``; 4: the history's worth is solved)."""
 DEFAULT_GRID = 400
-HISTORY_GAIN = 3e-5
-"""What a policy that also sees the work and time so far was measured to gain over the solved optimum, at most, in
-expected return: the solved policy is the best of those that see ``(decisions left, alertness, time awake)``, and
-the score is a ratio, so the work and time so far are worth a little more (see
-[`heartpole.optimum.history`][heartpole.optimum.history]). Measured on 1,000-decision episodes, paired:
-[`history_gain`][heartpole.optimum.history.history_gain]'s rule gains 1.2e-5 on v0 and 0.3e-5 to 2.0e-5 on the
-default cohort's people (every 95% interval below 2.8e-5; the highest, 200,000 episodes each: Cleo 1.66e-5, Fay
-1.63e-5, Kai 1.40e-5), an independent audit's rule 0.8e-5 to 1.5e-5 for six of them (docs/optimum.md). A
-measured gain, not a proven bound: the optimum over all policies is not solved. Regret intervals are widened by
-it ([`OptimumSolution.margin`][heartpole.optimum.solution.OptimumSolution.margin])."""
 SETTLE_TOLERANCE = 1e-13
 """A backward recursion has settled when its values, less their value at one state, change by at most this
 much (relative to their size, plus this much absolute) per decision; see

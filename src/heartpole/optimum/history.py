@@ -9,12 +9,13 @@ work so far implies, ``(work so far + rate x F) / (time so far + F)`` with ``F``
 interpolated between programs solved at rates around the optimum's. Both rules run on the same episodes (the same
 waking alertness for each one's ``k``-th day), in float64, so their difference is measured far more precisely than
 either score: 1.2e-5 of expected return on v0, 0.3e-5 to 2.0e-5 on the default cohort's people; the published
-regret intervals are widened by [`HISTORY_GAIN`][heartpole.optimum.common.HISTORY_GAIN], above all of them. No
+regret intervals are widened by [`OptimumSolution.history_worth`][heartpole.optimum.solution.OptimumSolution], solved by
+[`heartpole.optimum.whole`][heartpole.optimum.whole], which must lie above these gains. No
 drinks: their heart-attack part is the floor for both rules, so the difference of returns is the difference of
 scores.
 
-This is a measured gain of one history-aware rule, a lower bound on what history is worth, not a proof of an upper
-bound: the optimum over all policies is not solved.
+This is a measured gain of one history-aware rule, a lower bound on what history is worth: a check of
+[`heartpole.optimum.whole`][heartpole.optimum.whole]'s solved worth from outside it.
 """
 
 from __future__ import annotations

@@ -19,9 +19,10 @@ from heartpole import files
 from heartpole.model import Params, check_integer
 from heartpole.rewards import expected_risk, least_heart_attacks
 
-from .common import DEFAULT_GRID, HISTORY_GAIN, SOLVER_VERSION, NotCoveredError, params_dict
+from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
 from .drinks import check_beer, check_coffee, check_covered, drink_floor
 from .sleep import solve_params
+from .whole import history_worth
 
 if TYPE_CHECKING:
     from heartpole.dynamics import Dynamics
@@ -46,6 +47,8 @@ class OptimumSolution:
             (`drink_floor`).
         coffee_best_gain: the most a coffee gains over the no-drink optimum in any state checked, in units of
             work (`coffee_check`; negative: coffee never pays).
+        history_worth: what a policy that also sees the work done and the sleeps so far can add to
+            `expected_return`, at most: solved by [`history_worth`][heartpole.optimum.whole.history_worth].
         thresholds: ``(rows, max_awake)`` alertness thresholds: with ``n`` decisions left and
             ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
             Far from the end the policy settles into a stationary one; the rows stop there and
@@ -66,15 +69,15 @@ class OptimumSolution:
     expected_sleeps: float
     drink_floor: float
     coffee_best_gain: float
+    history_worth: float
     thresholds: np.ndarray = field(repr=False, compare=False)
 
     @property
     def margin(self) -> float:
         """How far `expected_return` may be from the optimum over all policies: the grid's `error_bound` plus
-        [`HISTORY_GAIN`][heartpole.optimum.common.HISTORY_GAIN], what seeing the work and time so far was measured
-        to be worth (measured at 1,000 decisions; the solved policy is the best of those that do not). Regret
-        intervals are widened by it."""
-        return self.error_bound + HISTORY_GAIN
+        `history_worth`, what seeing the work done and the sleeps so far can add (the solved policy is the best of
+        those that do not see them). Regret intervals are widened by it."""
+        return self.error_bound + self.history_worth
 
     @property
     def max_awake(self) -> int:
@@ -122,6 +125,7 @@ class OptimumSolution:
             "expected_sleeps": self.expected_sleeps,
             "drink_floor": self.drink_floor,
             "coffee_best_gain": self.coffee_best_gain,
+            "history_worth": self.history_worth,
             "max_awake": self.max_awake,
             "solver_version": SOLVER_VERSION,
         }
@@ -164,6 +168,7 @@ class OptimumSolution:
                 expected_sleeps=float(meta["expected_sleeps"]),
                 drink_floor=float(meta["drink_floor"]),
                 coffee_best_gain=float(meta["coffee_best_gain"]),
+                history_worth=float(meta["history_worth"]),
                 thresholds=thresholds,
                 **{key: float(meta[key]) for key in fields},
             )
@@ -216,6 +221,7 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
         expected_sleeps=fine.expected_sleeps,
         drink_floor=drink_floor(params),
         coffee_best_gain=coffee["coffee_best_gain"],
+        history_worth=history_worth(params),
         thresholds=fine.thresholds,
     )
 

@@ -29,7 +29,8 @@ figures move when the region or the grids are widened, as the sleep-timing progr
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterator
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -82,6 +83,8 @@ class HistoryOptimum:
     def sleeps(self, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
         """Whether the history-aware policy sleeps, for no-drink observations ``(envs, 6)`` (float) and the
         decisions left (1 on the last decision). It reads alertness, time awake, time elapsed and work done."""
+        if len(self.line_values) != self.params.max_steps:
+            raise ValueError("this solution kept no policy: solve it with solve_history(..., policy=True)")
         obs = np.asarray(obs, dtype=np.float64)
         n = np.asarray(decisions_left, dtype=np.int64)
         params = self.params
@@ -107,17 +110,63 @@ class HistoryOptimum:
         )
 
 
+HISTORY_HORIZON = 3000
+"""The longest horizon [`history_worth`][heartpole.optimum.whole.history_worth] solves; longer ones take its worth
+there (the history's worth falls with the horizon: 4.3e-5 at 300 decisions, 1.2e-5 at 1,000, 0.3e-5 at 3,000 on v0)."""
+
+
+def history_worth(params: Params) -> float:
+    """What a policy that also sees the work done and the sleeps so far can add to the sleep-timing optimum's expected
+    score: the program's upper value less the sleep-timing optimum's on the same grid, on a coarse grid (25 waking
+    points, 13 work points: it states the worth higher than finer grids do, see docs/optimum.md), at most
+    [`HISTORY_HORIZON`][heartpole.optimum.whole.HISTORY_HORIZON] decisions."""
+    short = replace(params, max_steps=min(params.max_steps, HISTORY_HORIZON))
+    solved = solve_history(short, grid=25, points=13, policy=False)
+    return max(solved.upper - solved.markov, 0.0)
+
+
 def solve_history(
-    params: Params, *, grid: int = 50, points: int = 25, band: int = 4, spread: float = 6.0, episodes: int = 4000
+    params: Params,
+    *,
+    grid: int = 50,
+    points: int = 25,
+    band: int | None = None,
+    spread: float = 6.0,
+    episodes: int = 4000,
+    policy: bool = True,
 ) -> HistoryOptimum:
-    """Solve the optimum over every no-drink policy of ``params`` (module docstring), with its bounds."""
+    """Solve the optimum over every no-drink policy of ``params`` (module docstring), with its bounds.
+
+    Args:
+        params: the variant (no drinks: the sleep-timing program's cases).
+        grid: midpoint points of the waking alertness.
+        points: grid points of the work before a day, ``spread`` typical deviations either side of its typical value.
+        band: sleeps so far either side of the typical count; ``None``: two more than the farthest seen on
+            ``episodes`` seeded episodes of the sleep-timing optimum.
+        policy: keep the lines of every day start, for `HistoryOptimum.sleeps`; without, only the bounds are
+            solved, in memory that does not grow with the horizon.
+    """
     steps = params.max_steps
     markov = solve_params(params, grid)
-    centre, work_centre, work_scale = _region(params, markov.thresholds, band, episodes)
+    centre, band, work_centre, work_scale = _region(params, markov.thresholds, band, episodes)
     offsets = np.linspace(-spread, spread, points)
     days = _day_work(params, grid)
+    geometry = np.stack(
+        [
+            work_centre + work_scale * offsets[0],
+            work_scale * (offsets[1] - offsets[0]),
+            np.full_like(work_scale, points),
+        ],
+        axis=-1,
+    )
     _, lines, slopes, upper, lower = _program(
-        steps, params.sleep_half_hours, days, centre, band, work_centre, work_scale, offsets
+        steps,
+        params.sleep_half_hours,
+        np.ascontiguousarray(days.T),
+        centre,
+        band,
+        geometry,
+        steps if policy else days.shape[1] + 1,
     )
     return HistoryOptimum(
         params,
@@ -147,179 +196,186 @@ def _day_work(params: Params, grid: int) -> np.ndarray:
 
 
 def _region(
-    params: Params, thresholds: np.ndarray, band: int, episodes: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    params: Params, thresholds: np.ndarray, band: int | None, episodes: int
+) -> tuple[np.ndarray, int, np.ndarray, np.ndarray]:
     """Where the program solves: the typical sleeps so far at each day start and, for each count in the band, the
-    typical work and its spread, fitted on episodes of the sleep-timing optimum (a fixed seed: the same every time)."""
+    typical work and its spread, fitted on episodes of the sleep-timing optimum (a fixed seed: the same every time).
+    Two passes over the same episodes: the fits of the counts and the work, then the spread about them."""
+    steps = params.max_steps
+    fits = _Fits()
+    for day_starts in _day_starts(params, thresholds, episodes):
+        fits.first(day_starts)
+    fit_k, fit_w = fits.solve_first()
+    for day_starts in _day_starts(params, thresholds, episodes):
+        fits.second(day_starts, fit_k, fit_w)
+    scale_fit, farthest = fits.solve_second()
+    band = farthest + 2 if band is None else band
+    m_left = np.arange(steps)
+    centre = np.maximum(np.round(fit_k[0] * (steps - m_left) + fit_k[1]).astype(np.int64), 1)
+    counts = centre[:, None] - band + np.arange(2 * band + 1)[None, :]
+    work_centre = fit_w[0] * (steps - m_left[:, None]) + fit_w[1] * counts + fit_w[2]
+    work_scale = np.maximum(scale_fit[0] * np.sqrt(np.maximum(counts, 0)) + scale_fit[1], 0.25)
+    return centre, band, work_centre, work_scale
+
+
+def _day_starts(params: Params, thresholds: np.ndarray, episodes: int) -> Iterator[np.ndarray]:
+    """The day starts of seeded episodes of the sleep-timing optimum, a decision at a time: rows of (decisions done,
+    sleeps so far, work before the day)."""
     steps = params.max_steps
     awake = thresholds.shape[1]
     drained = _DayModel(params, 1).drained
     low, high = params.wake_alertness
     rng = np.random.default_rng(0)
-    size = episodes
-    work = np.zeros(size)
-    sleeps = np.zeros(size, dtype=np.int64)
-    t = np.zeros(size, dtype=np.int64)
-    w = low + (high - low) * rng.random(size)
-    starts = []
+    work = np.zeros(episodes)
+    sleeps = np.zeros(episodes, dtype=np.int64)
+    t = np.zeros(episodes, dtype=np.int64)
+    w = low + (high - low) * rng.random(episodes)
     for n in range(steps, 0, -1):
         column = np.minimum(t, awake - 1)
         sleep = (t >= awake) | (w - drained[column] < thresholds[min(n, len(thresholds) - 1), column])
         if sleep.any():
             chosen = np.nonzero(sleep)[0]
-            starts.append(np.stack([np.full(len(chosen), n - 1.0), sleeps[chosen] + 1.0, work[chosen]], 1))
+            yield np.stack([np.full(len(chosen), steps - n + 1.0), sleeps[chosen] + 1.0, work[chosen]], 1)
         sleeps += sleep
-        w = np.where(sleep, low + (high - low) * rng.random(size), w)
+        w = np.where(sleep, low + (high - low) * rng.random(episodes), w)
         t = np.where(sleep, 0, t)
         work += productivity(w - drained[np.minimum(t, awake - 1)], 0.0)
         t += 1
-    m_left = np.arange(steps)
-    if starts:
-        seen = np.concatenate(starts)
-        done = steps - seen[:, 0]
-        fit_k = np.linalg.lstsq(np.stack([done, np.ones(len(seen))], 1), seen[:, 1], rcond=None)[0]
-        design = np.stack([done, seen[:, 1], np.ones(len(seen))], 1)
-        fit_w = np.linalg.lstsq(design, seen[:, 2], rcond=None)[0]
-        residual = seen[:, 2] - design @ fit_w
-        scale_fit = np.linalg.lstsq(
-            np.stack([np.sqrt(seen[:, 1]), np.ones(len(seen))], 1), np.abs(residual) * np.sqrt(np.pi / 2), rcond=None
-        )[0]
-    else:  # no episode sleeps: any day start is off the optimum's path
-        fit_k, fit_w, scale_fit = np.array([0.0, 1.0]), np.array([0.3, 0.0, 0.0]), np.array([0.0, 1.0])
-    centre = np.maximum(np.round(fit_k[0] * (steps - m_left) + fit_k[1]).astype(np.int64), 1)
-    counts = centre[:, None] - band + np.arange(2 * band + 1)[None, :]
-    work_centre = fit_w[0] * (steps - m_left[:, None]) + fit_w[1] * counts + fit_w[2]
-    work_scale = np.maximum(scale_fit[0] * np.sqrt(np.maximum(counts, 0)) + scale_fit[1], 0.25)
-    return centre, work_centre, work_scale
 
 
-@njit(cache=CACHE, inline="always")
-def _look(
-    upper: Any, lines: Any, slopes: Any, work_centre: Any, work_scale: Any, offsets: Any, m: Any, b: Any, x: Any
-) -> Any:
-    """The upper value and the best lower line (value, slope) at work ``x`` for day starts ``(m, b)``: the chord
-    (extended past the grid's ends) and the better of the two nearest lines (the edge line past the ends)."""
-    points = len(offsets)
-    f = ((x - work_centre[m, b]) / work_scale[m, b] - offsets[0]) / (offsets[1] - offsets[0])
-    k = 0 if f < 0.0 else (points - 2 if f >= points - 1 else int(f))
-    frac = f - k
-    up = upper[m, b, k] * (1.0 - frac) + upper[m, b, k + 1] * frac
-    first = lines[m, b, k] + slopes[m, b, k] * (x - work_centre[m, b] - work_scale[m, b] * offsets[k])
-    second = lines[m, b, k + 1] + slopes[m, b, k + 1] * (x - work_centre[m, b] - work_scale[m, b] * offsets[k + 1])
-    if f < 0.0 or (f < points - 1 and first >= second):
-        return up, first, slopes[m, b, k]
-    return up, second, slopes[m, b, k + 1]
+class _Fits:
+    """Least squares accumulated over day starts (their normal equations), so no day start is kept."""
+
+    def __init__(self) -> None:
+        self.k = (np.zeros((2, 2)), np.zeros(2))  # sleeps ~ decisions done
+        self.w = (np.zeros((3, 3)), np.zeros(3))  # work ~ decisions done, sleeps
+        self.spread = (np.zeros((2, 2)), np.zeros(2))  # |work residual| ~ sqrt(sleeps)
+        self.farthest = 0
+
+    @staticmethod
+    def _add(normal: tuple[np.ndarray, np.ndarray], design: np.ndarray, target: np.ndarray) -> None:
+        normal[0][...] += design.T @ design
+        normal[1][...] += design.T @ target
+
+    @staticmethod
+    def _solve(normal: tuple[np.ndarray, np.ndarray], fallback: np.ndarray) -> np.ndarray:
+        matrix, vector = normal
+        return np.linalg.lstsq(matrix, vector, rcond=None)[0] if matrix[-1, -1] > 0 else fallback
+
+    def first(self, rows: np.ndarray) -> None:
+        ones = np.ones(len(rows))
+        self._add(self.k, np.stack([rows[:, 0], ones], 1), rows[:, 1])
+        self._add(self.w, np.stack([rows[:, 0], rows[:, 1], ones], 1), rows[:, 2])
+
+    def solve_first(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._solve(self.k, np.array([0.0, 1.0])), self._solve(self.w, np.array([0.3, 0.0, 0.0]))
+
+    def second(self, rows: np.ndarray, fit_k: np.ndarray, fit_w: np.ndarray) -> None:
+        ones = np.ones(len(rows))
+        residual = rows[:, 2] - np.stack([rows[:, 0], rows[:, 1], ones], 1) @ fit_w
+        self._add(self.spread, np.stack([np.sqrt(rows[:, 1]), ones], 1), np.abs(residual) * np.sqrt(np.pi / 2))
+        distance = np.abs(rows[:, 1] - np.round(fit_k[0] * rows[:, 0] + fit_k[1]))
+        self.farthest = max(self.farthest, int(distance.max()))
+
+    def solve_second(self) -> tuple[np.ndarray, int]:
+        return self._solve(self.spread, np.array([0.0, 1.0])), self.farthest
 
 
 @njit(cache=CACHE)
-def _day(
+def _best_days(
     upper: Any,
     lines: Any,
     slopes: Any,
-    work_centre: Any,
-    work_scale: Any,
-    offsets: Any,
+    geometry: Any,
     centre: Any,
-    band: Any,
-    steps: Any,
-    rest: Any,
-    days: Any,
-    g: Any,
-    m: Any,
-    count: Any,
-    work: Any,
-    start: Any,
-    awake: Any,
+    band: int,
+    steps: int,
+    rest: int,
+    by_length: Any,
+    m: int,
+    count: int,
+    works: Any,
+    start: int,
+    rows: int,
 ) -> Any:
-    """The best choice of a day at position ``start`` with ``m`` decisions left: the upper value, and the best lower
-    line's value and slope."""
-    best_up, best_low, best_slope = -np.inf, -np.inf, 0.0
+    """The best choice of a day at position ``start`` with ``m`` decisions left and ``count`` sleeps, for each work
+    before the day in ``works`` (rows) and each waking alertness (columns): the upper value, and the best lower line's
+    value and slope.
+
+    The choices are: sleep after ``j`` more half-hours (the next day starts with ``m - j - 1`` left, one more sleep,
+    the day's work added), or work to the end. The upper value is the chord of the next day start's grid, extended
+    past its ends; the lower line the better of the two nearest lines (the edge line past the ends)."""
+    columns, grid = by_length.shape
+    awake = columns - 1
+    points = upper.shape[2]
+    best_up = np.full((len(works), grid), -np.inf)
+    best_low = np.full((len(works), grid), -np.inf)
+    best_slope = np.zeros((len(works), grid))
     time = steps + rest * count
     if m == 0 or m + start <= awake - 1:  # work to the end
-        best_up = best_low = (work + days[g, start + m]) / time
-        best_slope = 1.0 / time
+        for i in range(len(works)):
+            for g in range(grid):
+                best_up[i, g] = best_low[i, g] = (works[i] + by_length[start + m, g]) / time
+                best_slope[i, g] = 1.0 / time
     for j in range(min(m - 1, awake - 1 - start) + 1):
         after = m - j - 1
         b = count + 1 - centre[after] + band
         if b < 0 or b > 2 * band:
             continue
-        up, low, slope = _look(
-            upper, lines, slopes, work_centre, work_scale, offsets, after, b, work + days[g, start + j]
-        )
-        if up > best_up:
-            best_up = up
-        if low > best_low:
-            best_low, best_slope = low, slope
+        first_x, spacing = geometry[after, b, 0], geometry[after, b, 1]
+        up_row, line_row, slope_row = upper[after % rows, b], lines[after % rows, b], slopes[after % rows, b]
+        for i in range(len(works)):
+            for g in range(grid):
+                x = works[i] + by_length[start + j, g]
+                f = (x - first_x) / spacing
+                k = 0 if f < 0.0 else (points - 2 if f >= points - 1 else int(f))
+                frac = f - k
+                up = up_row[k] + (up_row[k + 1] - up_row[k]) * frac
+                first = line_row[k] + slope_row[k] * (x - first_x - spacing * k)
+                second = line_row[k + 1] + slope_row[k + 1] * (x - first_x - spacing * (k + 1))
+                if f < 0.0 or (f < points - 1 and first >= second):
+                    low, slope = first, slope_row[k]
+                else:
+                    low, slope = second, slope_row[k + 1]
+                if up > best_up[i, g]:
+                    best_up[i, g] = up
+                if low > best_low[i, g]:
+                    best_low[i, g], best_slope[i, g] = low, slope
     return best_up, best_low, best_slope
 
 
 @njit(cache=CACHE)
-def _program(
-    steps: Any, rest: Any, days: Any, centre: Any, band: Any, work_centre: Any, work_scale: Any, offsets: Any
-) -> Any:
-    """The backward program over day starts ``(m, sleeps so far, work)``; the upper and lower values at the start."""
-    grid, columns = days.shape
-    awake = columns - 1
-    width, points = 2 * band + 1, len(offsets)
-    upper = np.full((steps, width, points), -1e9)
-    lines = np.full((steps, width, points), -1e9)
-    slopes = np.zeros((steps, width, points))
+def _program(steps: int, rest: int, by_length: Any, centre: Any, band: int, geometry: Any, rows: int) -> Any:
+    """The backward program over day starts ``(m, sleeps so far, work)``; the upper and lower values at the start.
+    ``geometry[m, b]`` is the first work grid point and the spacing of day starts ``(m, b)``. The values of ``m`` are
+    kept in row ``m % rows``: ``rows = steps`` keeps them all (for the policy), a day's length plus one only those the
+    next day starts need."""
+    grid = by_length.shape[1]
+    width, points = 2 * band + 1, 0
+    points = int(geometry[0, 0, 2])
+    upper = np.full((rows, width, points), -1e9)
+    lines = np.full((rows, width, points), -1e9)
+    slopes = np.zeros((rows, width, points))
     for m in range(steps):
         for b in range(width):
             count = centre[m] - band + b
+            row = m % rows
+            upper[row, b], lines[row, b], slopes[row, b] = -1e9, -1e9, 0.0
             if count < 1:
                 continue
+            works = geometry[m, b, 0] + geometry[m, b, 1] * np.arange(points)
+            up, low, slope = _best_days(
+                upper, lines, slopes, geometry, centre, band, steps, rest, by_length, m, count, works, 1, rows
+            )
             for i in range(points):
-                work = work_centre[m, b] + work_scale[m, b] * offsets[i]
-                up = low = slope = 0.0
-                for g in range(grid):
-                    u, v, s = _day(
-                        upper,
-                        lines,
-                        slopes,
-                        work_centre,
-                        work_scale,
-                        offsets,
-                        centre,
-                        band,
-                        steps,
-                        rest,
-                        days,
-                        g,
-                        m,
-                        count,
-                        work,
-                        1,
-                        awake,
-                    )
-                    up += u
-                    low += v
-                    slope += s
-                upper[m, b, i], lines[m, b, i], slopes[m, b, i] = up / grid, low / grid, slope / grid
-    up = low = 0.0
-    for g in range(grid):  # the episode's first day: t = 0, no sleep and no work so far
-        u, v, _ = _day(
-            upper,
-            lines,
-            slopes,
-            work_centre,
-            work_scale,
-            offsets,
-            centre,
-            band,
-            steps,
-            rest,
-            days,
-            g,
-            steps,
-            0,
-            0.0,
-            0,
-            awake,
-        )
-        up += u
-        low += v
-    return upper, lines, slopes, up / grid, low / grid
+                upper[row, b, i] = up[i].sum() / grid
+                lines[row, b, i] = low[i].sum() / grid
+                slopes[row, b, i] = slope[i].sum() / grid
+    # the episode's first day: t = 0, no sleep and no work so far
+    up, low, _ = _best_days(
+        upper, lines, slopes, geometry, centre, band, steps, rest, by_length, steps, 0, np.zeros(1), 0, rows
+    )
+    return upper, lines, slopes, up[0].sum() / grid, low[0].sum() / grid
 
 
 def _greedy_sleeps(
