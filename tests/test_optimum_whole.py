@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -32,3 +34,32 @@ def test_a_tiny_instance_over_every_policy_matches_brute_force(sleep_half_hours:
     assert solved.upper >= best - 1e-9
     assert markov < best - 1e-4  # the history is worth something here: the test can tell the two apart
     assert solved.gain == pytest.approx(best - markov, abs=1e-9)
+
+
+@pytest.mark.slow  # a 1,000-decision program (seconds) and 2,000 episodes through the evaluator
+def test_the_history_aware_policy_scores_the_programs_value_through_the_evaluator() -> None:
+    """The program's policy played in the env (float32 dynamics, continuous waking draws): its expected-risk return's
+    95% interval holds the program's lower value (plus the no-drink heart-attack part), widened by the waking grid's
+    error (the sleep-timing optimum's grid 50 against 400); and it sees the history, so it reads the work done."""
+    from heartpole.evaluation import evaluate
+    from heartpole.optimum import optimum
+    from heartpole.policies import HistoryOptimalPolicy
+
+    solution = optimum("HeartPole-v0")
+    solved = solve_history(solution.params)
+    floor = solution.expected_return - solution.expected_score
+    grid_error = abs(solution.expected_score - solved.markov)
+    result = evaluate(HistoryOptimalPolicy(solved=solved), episodes=2000, seed=0)
+    low, high = result.expected_ci95
+    assert low - grid_error <= solved.lower + floor <= high + grid_error, (result.expected_ci95, solved.lower + floor)
+    assert 0 < solved.gain < 3e-5 and 0 <= solved.gap < 1e-6
+
+
+@pytest.mark.slow  # a 701-decision program
+def test_cli_history_reports_the_bounds(capsys) -> None:
+    from heartpole.cli import main
+
+    assert main(["optimum", "--history", "--check", "0", "--json", "--param", "max_steps=701"]) == 0
+    history = json.loads(capsys.readouterr().out)["history"]
+    assert history["bound above"] >= history["expected return, its policy"]
+    assert 0 < history["over the sleep-timing optimum"] < 1e-4

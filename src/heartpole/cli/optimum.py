@@ -78,6 +78,12 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the Monte-Carlo check (default 0)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     parser.add_argument("--people", metavar="NAME", help="solve each person of a population instead (named: default)")
+    parser.add_argument(
+        "--history",
+        action="store_true",
+        help="also solve the optimum over every policy (one that sees the work done and time elapsed too): its "
+        "policy's value, the bound above it, and with --check its policy through the evaluator",
+    )
     parser.set_defaults(handler=run_optimum)
 
 
@@ -97,18 +103,53 @@ def run_optimum(args: argparse.Namespace) -> int:
         else:
             solution = optimum.solve(args.env, grid=args.grid, **kwargs)
         checks = _check(args, kwargs) if args.check else {}
+        history = _history(args, kwargs, solution) if args.history else []
         if args.out:  # last, so that an interrupted command leaves --out as it was
             solution.save(args.out)
     except (ValueError, TypeError, OSError) as error:  # TypeError: a --param the env does not take
         raise CommandError(_param_error(error, args.param)) from None
     if args.json:
         data = {**solution.summary(), **{f"check_{k}": v.to_dict() for k, v in checks.items()}}
+        if args.history:
+            data["history"] = {row[0]: row[1] for row in history}
         print(json.dumps(data, allow_nan=False))
     else:
         print(format_solution(solution, checks))
+        if history:
+            print("\nthe optimum over every policy (it also sees the work done and the time elapsed)")
+            shown = [[name, f"{v:.2e}" if abs(v) < 1e-3 else f"{v:.7f}", note] for name, v, note in history]
+            print(format_table(["measure", "value", "note"], shown))
         if args.out:
             print(f"\nwrote {args.out}/optimum.json and optimum.npz")
     return 0
+
+
+def _history(
+    args: argparse.Namespace, kwargs: dict[str, Any], solution: OptimumSolution
+) -> list[tuple[str, float, str]]:
+    """``--history``: the program over day starts' figures, and its policy through the evaluator with ``--check``."""
+    from heartpole.evaluation import evaluate
+    from heartpole.optimum import solve_history
+    from heartpole.policies import HistoryOptimalPolicy
+    from heartpole.progress import progress
+    from heartpole.registry import env_dynamics
+
+    solved = solve_history(solution.params)
+    floor = solution.expected_return - solution.expected_score  # the heart-attack part: the same for both
+    rows = [
+        ("expected return, its policy", solved.lower + floor, "exact on its waking grid"),
+        ("bound above", solved.upper + floor, "no policy in the solved region does better"),
+        ("over the sleep-timing optimum", solved.gain, "what the history is worth (same grid)"),
+    ]
+    if args.check:
+        policy = HistoryOptimalPolicy(env_dynamics(args.env, kwargs), solved)
+        with progress(args.check * solution.params.max_steps, "checking optimal-history") as bar:
+            result = evaluate(policy, args.env, args.check, args.seed, env_kwargs=kwargs, progress=bar.update)
+        low, high = result.expected_ci95
+        rows.append(
+            ("through the evaluator", result.expected_return, f"[{low:.5f}, {high:.5f}], {args.check} episodes")
+        )
+    return rows
 
 
 def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:

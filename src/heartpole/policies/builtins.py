@@ -18,7 +18,7 @@ from heartpole.policies.oracle import OraclePolicy
 from heartpole.rates import RATE_WITH_NAPS, best_known_rate
 
 if TYPE_CHECKING:
-    from heartpole.optimum import OptimumSolution
+    from heartpole.optimum import HistoryOptimum, OptimumSolution
 
 
 class RandomPolicy:
@@ -224,6 +224,39 @@ class OptimalPolicy:
         left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
         sleeps = self.solution.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
         return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
+
+
+class HistoryOptimalPolicy:
+    """The optimum over every policy: like ``optimal``, but it also reads the work done and the time elapsed
+    ([`heartpole.optimum.whole`][heartpole.optimum.whole]'s program over day starts). Its expected score is the
+    program's lower value; ``heartpole optimum --history --check N`` runs it through the evaluator. Not a built-in
+    name (``optimal`` stays the sleep-timing policy: see docs/optimum.md).
+
+    Args:
+        dynamics: the env's dynamics (default: v0's); must be v0's actions and variables.
+        solved: a [`HistoryOptimum`][heartpole.optimum.whole.HistoryOptimum] solved with its policy (default: solve
+            one for ``dynamics``' parameters, seconds at 1,000 decisions).
+    """
+
+    name = "optimal-history"
+    needs_decisions_left = True
+
+    def __init__(self, dynamics: Dynamics | None = None, solved: HistoryOptimum | None = None) -> None:
+        from heartpole.optimum import solve_history
+        from heartpole.optimum.drinks import check_covered
+
+        dynamics = dynamics or default_dynamics()
+        check_covered("this env", dynamics)
+        self.solved = solved if solved is not None else solve_history(dynamics.params)
+        self.nothing = dynamics.action_index("do_nothing")
+        self.sleep = dynamics.action_index("sleep")
+
+    def __call__(self, obs: Observations, decisions_left: DecisionsLeft = None) -> Actions:
+        obs = observation_batch(obs)
+        if decisions_left is None:
+            raise ValueError("the optimal-history policy needs the number of decisions left: call policy(obs, left)")
+        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
+        return np.where(self.solved.sleeps(obs, left), self.sleep, self.nothing).astype(np.int64)
 
 
 BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
