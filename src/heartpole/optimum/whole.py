@@ -91,12 +91,16 @@ class HistoryOptimum:
         awake = max_awake(params)
         drained = _DayModel(params, 1).drained
         t = np.minimum(obs[:, 3].round().astype(np.int64), awake - 1)
-        sleeps = np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
+        if params.sleep_half_hours:
+            sleeps = np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
+        else:  # the time does not tell the sleeps, and they do not matter: every count has the centre's values
+            sleeps = np.full(len(obs), -1, dtype=np.int64)
         w = obs[:, 0] + drained[t]
-        work = obs[:, 5].astype(np.float64)
-        return _greedy_sleeps(
-            w, t, n, sleeps, work, drained, params.max_steps, params.sleep_half_hours, awake, *self._tables()
-        )
+        # the work after each further half-hour of the day, for every env
+        columns = np.minimum(t[:, None] + np.arange(awake)[None, :], awake - 1)
+        worked = productivity(w[:, None] - drained[columns], 0.0)
+        later = obs[:, 5, None] + np.concatenate([np.zeros((len(w), 1)), np.cumsum(worked, axis=1)], axis=1)
+        return _greedy(later, t, n, sleeps, params.max_steps, params.sleep_half_hours, awake, *self._tables())
 
     def _tables(self) -> tuple[Any, ...]:
         return (
@@ -378,34 +382,6 @@ def _program(steps: int, rest: int, by_length: Any, centre: Any, band: int, geom
     return upper, lines, slopes, up[0].sum() / grid, low[0].sum() / grid
 
 
-def _greedy_sleeps(
-    w: Any,
-    t: Any,
-    n: Any,
-    sleeps: Any,
-    work: Any,
-    drained: Any,
-    steps: Any,
-    rest: Any,
-    awake: Any,
-    centre: Any,
-    band: Any,
-    work_centre: Any,
-    work_scale: Any,
-    offsets: Any,
-    lines: Any,
-    slopes: Any,
-) -> Any:
-    """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
-    end), by the upper envelope of the lower lines."""
-    columns = np.minimum(t[:, None] + np.arange(awake)[None, :], awake - 1)
-    worked = productivity(w[:, None] - drained[columns], 0.0)
-    later = work[:, None] + np.concatenate([np.zeros((len(w), 1)), np.cumsum(worked, axis=1)], axis=1)
-    return _greedy(
-        later, t, n, sleeps, steps, rest, awake, centre, band, work_centre, work_scale, offsets, lines, slopes
-    )
-
-
 @njit(cache=CACHE)
 def _greedy(
     later: Any,
@@ -423,7 +399,9 @@ def _greedy(
     lines: Any,
     slopes: Any,
 ) -> Any:
-    """`_greedy_sleeps`' loop: ``later[e, j]`` is env ``e``'s work after ``j`` more half-hours of its day."""
+    """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
+    end), by the upper envelope of the lower lines; ``later[e, j]`` is env ``e``'s work after ``j`` more half-hours
+    of its day."""
     decide = np.zeros(len(t), dtype=np.bool_)
     for e in range(len(t)):
         if t[e] >= awake - 1:
@@ -434,7 +412,7 @@ def _greedy(
         now = -np.inf
         for j in range(min(n[e] - 1, awake - 1 - t[e]) + 1):
             after = n[e] - j - 1
-            b = sleeps[e] + 1 - centre[after] + band
+            b = band if sleeps[e] < 0 else sleeps[e] + 1 - centre[after] + band
             if b < 0 or b > 2 * band:
                 continue
             value = -np.inf
