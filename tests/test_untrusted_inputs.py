@@ -1,5 +1,6 @@
-"""Nothing from a folder or file runs code by default: ``heartpole tune --resume`` refuses to unpickle Ray Tune's
-saved search without ``--trust-pickles``."""
+"""Nothing from a folder or file runs code or imports a module by default: ``heartpole tune --resume`` refuses to
+unpickle Ray Tune's saved search without ``--trust-pickles``, and an env id read from a file (a preset's, a
+dataset's metadata) must be one of HeartPole's registered ids before anything imports or makes it."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ import sys
 from pathlib import Path
 
 import pytest
+
+import heartpole
+from heartpole.registry import check_heartpole_id
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 EVIL_MODULE = "import pathlib\npathlib.Path('imported.marker').write_text('evilmod ran')\n"
@@ -78,3 +82,52 @@ def test_tune_search_refuses_to_resume_without_trust_pickles(tmp_path: Path) -> 
     with pytest.raises(scale.UntrustedSearchError, match=r"tuner\.pkl.*trust_pickles=True"):
         scale.tune_search(scale.read_settings(out), out, resume=True)
     assert not marker.exists()
+
+
+# ------------------------------------------------------------------------------------------------------
+# env ids from files
+
+EVIL_ID = "evilmod:HeartPole-v0"
+
+
+def _evil_cwd(tmp_path: Path) -> Path:
+    """A folder holding ``evilmod.py``, which leaves ``imported.marker`` when imported."""
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    (cwd / "evilmod.py").write_text(EVIL_MODULE)
+    return cwd
+
+
+def test_check_heartpole_id_accepts_heartpoles_ids_only() -> None:
+    assert check_heartpole_id("HeartPole-v1", "f.json") == "HeartPole-v1"
+    heartpole.register_variant("TrustPole-v0", replace=True)
+    assert check_heartpole_id("TrustPole-v0", "f.json") == "TrustPole-v0"
+    for bad in (EVIL_ID, "CartPole-v1", None, 3):
+        with pytest.raises(ValueError, match=r"^f\.json: env id .* is not a HeartPole env; accepted: HeartPole-v0, "):
+            check_heartpole_id(bad, "f.json")
+
+
+def test_a_presets_env_id_imports_nothing(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    cwd = _evil_cwd(tmp_path)
+    preset = cwd / "p.json"
+    preset.write_text(json.dumps({"format": "heartpole-preset/1", "config": {"algo": "ppo", "env_id": EVIL_ID}}))
+    done = heartpole_in(cwd, "train", "--preset", "p.json", "--out", str(tmp_path / "run"))
+    one_line_refusal(done, "p.json", repr(EVIL_ID), "accepted: HeartPole-v0, HeartPole-v1")
+    assert not (cwd / "imported.marker").exists() and not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("key", ["env_id", "env_spec"])
+def test_a_datasets_env_imports_nothing(tmp_path: Path, key: str) -> None:
+    pytest.importorskip("minari")
+    cwd = _evil_cwd(tmp_path)
+    data = tmp_path / "minari" / "heartpole" / "v0" / "evil-v0" / "data"
+    data.mkdir(parents=True)
+    spec = {"id": "HeartPole-v0", "entry_point": "evilmod:make", "additional_wrappers": [], "kwargs": {}}
+    metadata = {"env_id": EVIL_ID} if key == "env_id" else {"env_id": "HeartPole-v0", "env_spec": json.dumps(spec)}
+    (data / "metadata.json").write_text(json.dumps({"dataset_id": "heartpole/v0/evil-v0", **metadata}))
+    done = heartpole_in(cwd, "ope", "--dataset", "heartpole/v0/evil-v0", "--policy", "expert",
+                        env={"MINARI_DATASETS_PATH": str(tmp_path / "minari")})  # fmt: skip
+    fragments = [repr(EVIL_ID), "accepted: HeartPole-v0"] if key == "env_id" else ["'evilmod:make'"]
+    one_line_refusal(done, str(data / "metadata.json"), *fragments)
+    assert not (cwd / "imported.marker").exists()

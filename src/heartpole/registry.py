@@ -268,6 +268,30 @@ def define_variant(
     return gym.spec(env_id)
 
 
+def heartpole_ids() -> tuple[str, ...]:
+    """The ids of HeartPole's envs in this process: ``HeartPole-v0``, ``HeartPole-v1`` and the variants
+    [`register_variant`][heartpole.registry.register_variant] registered, in that order."""
+    return (*BUILTIN_IDS, *sorted(i for i in _variants if i in gym.registry))
+
+
+def check_heartpole_id(env_id: object, source: str) -> str:
+    """``env_id``, read from ``source`` (a file, named in the message), if it is one of
+    [`heartpole_ids`][heartpole.registry.heartpole_ids]; otherwise a ``ValueError`` naming the file, the id and the
+    accepted ids.
+
+    The check is a lookup in HeartPole's own ids and nothing more: Gymnasium would import the module of a
+    ``"module:Name-v0"`` id, and make an env of any other registered id, so an id from a file someone else may
+    have written is checked here before anything imports or makes it.
+    """
+    accepted = heartpole_ids()
+    if not isinstance(env_id, str) or env_id not in accepted:
+        raise ValueError(
+            f"{source}: env id {env_id!r} is not a HeartPole env; accepted: {', '.join(accepted)} (nothing was "
+            "imported or made)"
+        )
+    return env_id
+
+
 # ------------------------------------------------------------------------------------------------------
 # checks
 

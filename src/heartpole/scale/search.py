@@ -18,6 +18,7 @@ from typing import Any
 from ray import tune
 
 from heartpole import files, training
+from heartpole.registry import check_heartpole_id
 from heartpole.scale.trials import (
     AllTrialsFailedError,
     SearchInterruptedError,
@@ -204,8 +205,13 @@ def prepare_search_folder(
 
 
 def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:
-    """The settings of the search in ``folder``."""
-    return SearchSettings.from_dict(json.loads((Path(folder) / SEARCH_SETTINGS_FILE).read_text()))
+    """The settings of the search in ``folder``; its env id must be a HeartPole id (checked before anything makes
+    it: a ``ValueError`` otherwise)."""
+    path = Path(folder) / SEARCH_SETTINGS_FILE
+    data = json.loads(path.read_text())
+    base = data.get("base") if isinstance(data, dict) else None
+    check_heartpole_id(base.get("env_id", "HeartPole-v0") if isinstance(base, dict) else None, str(path))
+    return SearchSettings.from_dict(data)
 
 
 def tune_search(
