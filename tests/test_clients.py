@@ -420,12 +420,13 @@ USER_FILTER = (
 @pytest.mark.parametrize(
     "options, environment, prelude, shown",
     [
-        ([], {}, "", 4),  # unasked, Gymnasium's notice stands: the main process and each of the three workers
+        ([], {}, "", 0),  # unasked: import heartpole ignores it, in the main process and each of the three workers
+        (["-W", "default::DeprecationWarning"], {}, "", 4),  # asked for: each process shows it
         (["-W", "ignore::DeprecationWarning"], {}, "", 0),
         ([], {"PYTHONWARNINGS": "ignore::DeprecationWarning"}, "", 0),
         ([], {}, USER_FILTER, 0),  # before `import gymnasium`; spawned workers run it too, as they import the script
     ],
-    ids=["unasked", "-W", "PYTHONWARNINGS", "filter-before-import-gymnasium"],
+    ids=["unasked", "-W default", "-W", "PYTHONWARNINGS", "filter-before-import-gymnasium"],
 )
 def test_the_v0_warning_obeys_the_users_filters_in_workers_too(
     tmp_path: Path, options: list[str], environment: dict[str, str], prelude: str, shown: int

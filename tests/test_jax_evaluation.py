@@ -182,3 +182,62 @@ def test_a_render_mode_is_refused() -> None:
         make("HeartPole-v0", render_mode="human")
     env, _ = make("HeartPole-v0", render_mode=None)
     assert env.num_actions == 4
+
+
+# ------------------------------------------------------------------------------------------------------
+# refusals: what heartpole.evaluate refuses, in its words
+
+
+def _at_step(step: int, action: object) -> object:
+    """A policy that does nothing until ``step`` decisions are left, then plays ``action`` (a NumPy value)."""
+
+    def policy(obs: object, left: object) -> object:
+        n = obs.shape[0]  # type: ignore[attr-defined]
+        return jnp.where(jnp.asarray(left) > step, jnp.zeros(n, jnp.int32), jnp.full(n, action, jnp.int32))
+
+    policy.needs_decisions_left = True  # type: ignore[attr-defined]
+    return policy
+
+
+INVALID = {
+    "seven": lambda obs: np.full(obs.shape[0], 7),
+    "minus one": lambda obs: np.full(obs.shape[0], -1),
+    "uint8 255": lambda obs: np.full(obs.shape[0], 255, dtype=np.uint8),
+    "floats": lambda obs: np.full(obs.shape[0], 1.0),
+    "a list of floats": lambda obs: [1.0] * obs.shape[0],
+    "bools": lambda obs: np.zeros(obs.shape[0], dtype=bool),
+    "a column": lambda obs: np.zeros((obs.shape[0], 1), dtype=np.int64),
+    "too few": lambda obs: np.zeros(obs.shape[0] - 1, dtype=np.int64),
+    "7 late in the episode": _at_step(3, 7),
+}
+
+
+@pytest.mark.parametrize("name", list(INVALID))
+def test_invalid_actions_are_refused_with_numpys_message(name: str) -> None:
+    policy = INVALID[name]
+    options = {"episodes": 6, "seed": 2, "env_kwargs": {"max_steps": 8}, "regret": False}
+    with pytest.raises(ValueError) as numpy:
+        heartpole.evaluate(policy, **options)
+    with pytest.raises(ValueError) as device:
+        evaluate(policy, **options)
+    assert str(device.value) == str(numpy.value)
+    assert "expected 6 integer actions in 0..3" in str(device.value)
+
+
+def test_invalid_actions_of_a_batch_are_refused() -> None:
+    weights = jnp.asarray([0, 9], dtype=jnp.int32)
+    with pytest.raises(ValueError, match=r"returned actions 9\.\.9; expected 4 integer actions in 0\.\.3"):
+        evaluate_batch(lambda w, obs: jnp.full(obs.shape[0], w), weights, episodes=4, env_kwargs={"max_steps": 5})
+
+
+@pytest.mark.parametrize("seed", [-1, True, 1.0, "0", 2**63, 2**64, 10**30, np.uint64(2**64 - 1)])
+def test_seeds_are_refused_and_accepted_as_numpys(seed: object) -> None:
+    options = {"episodes": 2, "env_kwargs": {"max_steps": 4}, "regret": False}
+    try:
+        expected = heartpole.evaluate("random", seed=seed, **options)
+    except ValueError as error:
+        with pytest.raises(ValueError) as device:
+            evaluate("random", seed=seed, **options)
+        assert str(device.value) == str(error)
+    else:
+        assert evaluate("random", seed=seed, **options).seed == expected.seed

@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from heartpole.game import action_keys, new_game, prompt, status_lines
+from tests.signal_dispositions import as_in_a_terminal
 
 pexpect = pytest.importorskip("pexpect")
 
@@ -16,6 +17,8 @@ TIMEOUT = 60
 
 
 def spawn(*extra: str) -> pexpect.spawn:
+    """The game in a new pseudo-terminal, its signals at a terminal's defaults: the suite may run where SIGINT
+    is ignored (``cmd &`` in a script), which the game, as every command, would keep ignoring."""
     child = pexpect.spawn(
         PLAY[0],
         PLAY[1:] + list(extra),
@@ -23,6 +26,7 @@ def spawn(*extra: str) -> pexpect.spawn:
         timeout=TIMEOUT,
         dimensions=(24, 80),
         env={"PATH": "/usr/bin:/bin", "NO_COLOR": "1"},
+        preexec_fn=as_in_a_terminal,
     )
     child.expect_exact("Day 1 09:00  (step 0/")
     return child

@@ -120,11 +120,26 @@ def test_heartpoles_own_names_are_reserved(env_id: str) -> None:
     assert env_id not in gym.registry
 
 
-def test_import_changes_no_warning_filter() -> None:
+def test_import_adds_one_warning_filter_for_the_v0_notice_alone() -> None:
+    """``import heartpole`` changes none of the filters there are and adds one: ignore Gymnasium's "HeartPole-v0 is
+    out of date" from its registration module."""
     code = (
-        "import warnings, gymnasium\n"
+        "import re, warnings, gymnasium\n"
         "before = list(warnings.filters)\n"
         "import heartpole, heartpole.policies, heartpole.evaluation\n"
-        "assert list(warnings.filters) == before, [f for f in warnings.filters if f not in before]\n"
+        "added = [f for f in warnings.filters if f not in before]\n"
+        "assert [f for f in warnings.filters if f in before] == before\n"
+        "[(action, message, category, module, line)] = added\n"
+        "assert (action, category, module.pattern, line) == ('ignore', DeprecationWarning, "
+        "re.escape('gymnasium.envs.registration'), 0), added\n"
+        "assert message.match('\\x1b[33mWARN: The environment HeartPole-v0 is out of date.')\n"
+        "assert not message.match('\\x1b[33mWARN: The environment CartPole-v0 is out of date.')\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("how", ["gym.make('HeartPole-v0')", "gym.make('heartpole:HeartPole-v0')"])
+def test_a_first_make_of_v0_prints_no_warning(how: str) -> None:
+    code = f"import gymnasium as gym\nimport heartpole\n{how}.close()\ngym.make('CartPole-v0').close()\n"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "HeartPole" not in done.stderr and "CartPole-v0 is out of date" in done.stderr, done.stderr

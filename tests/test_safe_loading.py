@@ -12,6 +12,7 @@ import json
 import os
 import pickle
 import shutil
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -237,8 +238,6 @@ def test_a_model_copied_without_its_statistics_is_not_evaluated_silently(run: Pa
 
 
 def test_a_model_trained_without_vecnormalize_loads_without_that_warning(tmp_path: Path) -> None:
-    import warnings
-
     import stable_baselines3 as sb3
 
     model = sb3.PPO("MlpPolicy", heartpole.HeartPole(), n_steps=16, batch_size=16, policy_kwargs={"net_arch": [8]})
@@ -249,6 +248,38 @@ def test_a_model_trained_without_vecnormalize_loads_without_that_warning(tmp_pat
         policy = load_policy(str(tmp_path / "m.zip"))
     expected, _ = model.predict(OBS, deterministic=True)
     np.testing.assert_array_equal(policy(OBS), expected)
+
+
+PLAIN_SB3 = {
+    "ppo": ("PPO", {}),
+    "ppo unshared extractors": ("PPO", {"share_features_extractor": False}),
+    "ppo pi and vf nets": ("PPO", {"net_arch": {"pi": [8], "vf": [16]}}),
+    "ppo pi and vf nets unshared": ("PPO", {"net_arch": {"pi": [8], "vf": [16]}, "share_features_extractor": False}),
+    "a2c": ("A2C", {}),
+    "a2c unshared extractors": ("A2C", {"share_features_extractor": False, "activation_fn": torch.nn.Tanh}),
+    "dqn": ("DQN", {"net_arch": [16]}),
+}
+
+
+@pytest.mark.parametrize("case", list(PLAIN_SB3))
+def test_every_plain_sb3_model_acts_as_sb3s_own_predict(tmp_path: Path, case: str, capsys) -> None:
+    """A plain SB3 model, whatever its policy keywords, loads (safe reader) and acts as ``model.predict(obs,
+    deterministic=True)`` does, in memory (``ModelPolicy``'s fast path) and loaded from its zip."""
+    import stable_baselines3 as sb3
+
+    algo, kwargs = PLAIN_SB3[case]
+    options = {"learning_starts": 0} if algo == "DQN" else {"n_steps": 16}
+    model = getattr(sb3, algo)("MlpPolicy", heartpole.HeartPole(), policy_kwargs=kwargs, seed=3, **options)
+    model.learn(32)
+    model.save(tmp_path / "m.zip")
+    expected, _ = model.predict(OBS, deterministic=True)
+    np.testing.assert_array_equal(ModelPolicy(model)(OBS), expected)
+    with warnings.catch_warnings():  # a trained DQN keeps _last_original_obs, read as a sign of VecNormalize
+        warnings.filterwarnings("ignore", ".*trained on VecNormalize-wrapped envs", UserWarning)
+        loaded = load_policy(str(tmp_path / "m.zip"))
+    assert isinstance(loaded.model, SavedModel)
+    np.testing.assert_array_equal(loaded(OBS), expected)
+    assert main(["evaluate", "--policy", str(tmp_path / "m.zip"), "--episodes", "2"]) == 0, capsys.readouterr().err
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -247,8 +247,11 @@ def test_an_interrupted_search_resumes_without_rerunning_finished_trials(tmp_pat
     if process.returncode == 0:
         pytest.skip("the search finished before it could be interrupted")
     assert process.returncode == 130, err
-    assert f"heartpole tune --resume --out {out}" in err.strip().splitlines()[-1]
-    resumed = subprocess.run([*command[:4], "--resume", "--out", str(out), "--json"], capture_output=True,
+    assert f"heartpole tune --resume --trust-pickles --out {out}" in err.strip().splitlines()[-1]
+    refused = subprocess.run([*command[:4], "--resume", "--out", str(out)], capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and "--trust-pickles" in refused.stderr, refused.stderr
+    resumed = subprocess.run([*command[:4], "--resume", "--trust-pickles", "--out", str(out), "--json"],
+                             capture_output=True,
                              text=True, timeout=600)  # fmt: skip
     assert resumed.returncode == 0, resumed.stderr
     assert resumed.stderr == "", "Ray, Tune or Optuna printed something"  # the bar shows only on a terminal

@@ -87,15 +87,17 @@ def register_envs() -> None:
     """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered.
 
     Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
-    ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so warns, once per
-    calling line, that ``HeartPole-v0`` "is out of date"; v1 is a richer variant, v0 stays the reference benchmark.
-    Gymnasium offers no per-id way to say so; the notice stands unless the user's own warning filters say
-    otherwise, which [`honour_version_warning_filters`][heartpole.registry.honour_version_warning_filters] makes
-    them do."""
+    ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so would warn that
+    ``HeartPole-v0`` "is out of date"; it is not (v1 is a richer variant, v0 stays the reference benchmark), and
+    Gymnasium offers no per-id way to say so. So where the user's own warning filters say nothing about that
+    warning, one filter ignores it, that message from Gymnasium's registration module alone; where they say
+    something (``-W error::DeprecationWarning``, say),
+    [`honour_version_warning_filters`][heartpole.registry.honour_version_warning_filters] makes them apply."""
     for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
             define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
-    honour_version_warning_filters()
+    if honour_version_warning_filters() is None:
+        warnings.filterwarnings("ignore", V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
 
 
 V0_WARNING = r".*The environment HeartPole-v0 is out of date"
@@ -123,8 +125,8 @@ def honour_version_warning_filters() -> str | None:
     env's, SubprocVecEnv's, Ray's) prints it again. ``import heartpole`` (in every worker, where the env is
     made) looks through the filters behind Gymnasium's for the first that matches the v0 warning; if it is the
     user's (from ``-W``, ``PYTHONWARNINGS`` or their code), not one of Python's defaults, it adds one filter
-    with that filter's action for the v0 warning alone. Without such a filter nothing changes: the notice
-    stands, as Gymnasium shows it.
+    with that filter's action for the v0 warning alone. Without such a filter it changes nothing and returns
+    ``None`` ([`register_envs`][heartpole.registry.register_envs] then ignores the warning).
     """
     from gymnasium.utils import colorize
 
@@ -266,6 +268,30 @@ def define_variant(
             gym.registry[env_id] = replaced
         raise ValueError(f"HeartPole variant {env_id!r}: {error}") from None
     return gym.spec(env_id)
+
+
+def heartpole_ids() -> tuple[str, ...]:
+    """The ids of HeartPole's envs in this process: ``HeartPole-v0``, ``HeartPole-v1`` and the variants
+    [`register_variant`][heartpole.registry.register_variant] registered, in that order."""
+    return (*BUILTIN_IDS, *sorted(i for i in _variants if i in gym.registry))
+
+
+def check_heartpole_id(env_id: object, source: str) -> str:
+    """``env_id``, read from ``source`` (a file, named in the message), if it is one of
+    [`heartpole_ids`][heartpole.registry.heartpole_ids]; otherwise a ``ValueError`` naming the file, the id and the
+    accepted ids.
+
+    The check is a lookup in HeartPole's own ids and nothing more: Gymnasium would import the module of a
+    ``"module:Name-v0"`` id, and make an env of any other registered id, so an id from a file someone else may
+    have written is checked here before anything imports or makes it.
+    """
+    accepted = heartpole_ids()
+    if not isinstance(env_id, str) or env_id not in accepted:
+        raise ValueError(
+            f"{source}: env id {env_id!r} is not a HeartPole env; accepted: {', '.join(accepted)} (nothing was "
+            "imported or made)"
+        )
+    return env_id
 
 
 # ------------------------------------------------------------------------------------------------------

@@ -101,16 +101,38 @@ def episode_people(info: Mapping[str, Any]) -> np.ndarray | None:
     return None if person is None else np.asarray(person, dtype=np.int64).reshape(-1)
 
 
-def check_actions(actions: object, size: int, num_actions: int, name: str) -> np.ndarray:
-    """``actions`` as an index array, or ``ValueError`` naming the policy, what it returned and what is accepted."""
-    array = np.asarray(actions)
+def invalid_actions(
+    name: str,
+    size: int,
+    num_actions: int,
+    *,
+    shape: tuple[int, ...] | None = None,
+    dtype: object = None,
+    low: object = None,
+    high: object = None,
+) -> str:
+    """The message that policy ``name``, given ``size`` observations, returned invalid actions: of ``shape`` (not
+    ``(size,)``), else of ``dtype`` (not integers), else from ``low`` to ``high`` (not all in
+    ``0..num_actions - 1``). Every evaluator's refusal (NumPy's [`check_actions`][heartpole.rollout.check_actions],
+    [`heartpole.jax.evaluate`][heartpole.jax.evaluation.evaluate]'s) says it in these words."""
     expected = f"expected {size} integer actions in 0..{num_actions - 1}"
+    if shape is not None:
+        return f"policy {name!r} returned shape {shape} for {size} observations; {expected}"
+    if dtype is not None:
+        return f"policy {name!r} returned {dtype} actions; {expected}"
+    return f"policy {name!r} returned actions {low}..{high}; {expected}"
+
+
+def check_actions(actions: object, size: int, num_actions: int, name: str) -> np.ndarray:
+    """``actions`` as an index array, or ``ValueError`` naming the policy, what it returned and what is accepted
+    ([`invalid_actions`][heartpole.rollout.invalid_actions])."""
+    array = np.asarray(actions)
     if array.shape != (size,):
-        raise ValueError(f"policy {name!r} returned shape {array.shape} for {size} observations; {expected}")
+        raise ValueError(invalid_actions(name, size, num_actions, shape=array.shape))
     if array.dtype.kind not in "iu":
-        raise ValueError(f"policy {name!r} returned {array.dtype} actions; {expected}")
+        raise ValueError(invalid_actions(name, size, num_actions, dtype=array.dtype))
     if size and (array.min() < 0 or array.max() >= num_actions):
-        raise ValueError(f"policy {name!r} returned actions {array.min()}..{array.max()}; {expected}")
+        raise ValueError(invalid_actions(name, size, num_actions, low=array.min(), high=array.max()))
     return array.astype(np.intp, copy=False)
 
 

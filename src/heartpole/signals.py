@@ -8,6 +8,8 @@
   matplotlib's ``ft2font`` did).
 * [`signals_deferred`][heartpole.signals.signals_deferred]: moves into place and cleanups run to their end; a signal
   that arrives meanwhile takes effect right after.
+* [`interruptible`][heartpole.signals.interruptible]: long compiled work (numba's ``nogil`` loops) runs in a worker
+  thread while the main thread waits, so a signal takes effect within a fraction of a second.
 
 [`heartpole.files`][heartpole.files], the one writer, uses them (and exports them, as it always has).
 """
@@ -24,7 +26,9 @@ import threading
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from types import FrameType
-from typing import Any
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 SIGNALS: tuple[signal.Signals, ...] = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
@@ -237,6 +241,37 @@ def signals_deferred() -> Iterator[None]:
     finally:
         if pending:  # even when the block raised: the signal is never lost
             signal.raise_signal(pending[0])
+
+
+def interruptible(call: Callable[[], T], poll: float = 0.05) -> T:
+    """``call()``, run in a worker thread while the main thread waits for it: its result, or its exception.
+
+    Python runs signal handlers in the main thread between bytecodes, so a long call into compiled code (a
+    numba loop over a billion decisions) would hold back SIGINT, SIGTERM and SIGHUP until it returns, minutes or
+    hours later. Waiting here instead, the main thread handles a signal within ``poll`` seconds (under
+    [`signal_policy`][heartpole.signals.signal_policy]: [`Interrupted`][heartpole.signals.Interrupted] is raised
+    from this call) while the worker, a daemon thread, is abandoned: the process exits without waiting for it.
+    ``call`` must leave nothing half done if abandoned (write its results, if at all, at its end, in place at
+    once). Outside the main thread, ``call()`` runs in the calling thread.
+    """
+    if not _main_thread():
+        return call()
+    outcome: list[tuple[bool, Any]] = []
+
+    def work() -> None:
+        try:
+            outcome.append((True, call()))
+        except BaseException as error:  # noqa: BLE001 - handed to the waiting thread, which raises it
+            outcome.append((False, error))
+
+    worker = threading.Thread(target=work, name="heartpole-interruptible", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(poll)
+    done, value = outcome[0]
+    if not done:
+        raise value
+    return value
 
 
 @contextmanager

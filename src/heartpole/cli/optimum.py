@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
@@ -17,6 +18,7 @@ from heartpole.cli.common import (
     output_files,
     seed_int,
 )
+from heartpole.signals import interruptible
 
 if TYPE_CHECKING:
     from heartpole.evaluation import EvaluationResult
@@ -96,12 +98,15 @@ def run_optimum(args: argparse.Namespace) -> int:
         return _run_people(args, kwargs)
     if args.out:
         output_files(args.out, ["optimum.npz", "optimum.json"], force=True)  # before solving: can it be written?
+    if args.grid is not None:
+        _check_memory(args.env, kwargs, args.grid)
     print(f"solving {args.env}{' ' + str(kwargs) if kwargs else ''}...", file=sys.stderr, flush=True)
     try:
+        # in a worker thread: a signal ends the command within a second, even in a long compiled loop
         if args.grid is None:
-            solution = optimum.optimum(args.env, kwargs)
+            solution = interruptible(lambda: optimum.optimum(args.env, kwargs))
         else:
-            solution = optimum.solve(args.env, grid=args.grid, **kwargs)
+            solution = interruptible(lambda: optimum.solve(args.env, grid=args.grid, **kwargs))
         checks = _check(args, kwargs) if args.check else {}
         history = _history(args, kwargs, solution) if args.history else []
         if args.out:  # last, so that an interrupted command leaves --out as it was
@@ -161,7 +166,7 @@ def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
         raise CommandError("--grid and --out solve one person; with --people each person gets the default grid")
     env_kwargs = {**kwargs, "people": args.people}
     try:
-        truth = people_truth(args.env, env_kwargs, show_progress=True)
+        truth = interruptible(lambda: people_truth(args.env, env_kwargs, show_progress=True))
         if not isinstance(truth, PeopleOptimum):
             raise CommandError(f"--people {args.people}: {truth}")
         checks = _check(args, env_kwargs, ("oracle", "expert")) if args.check else {}
@@ -182,6 +187,37 @@ def _run_people(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
         low, high = result.oracle_regret_ci95
         print(f"{name}: oracle regret {result.oracle_regret:.5f} [{low:.5f}, {high:.5f}] ({result.episodes} episodes)")
     return 0
+
+
+SOLVER_ARRAYS = 8
+"""Arrays of ``grid x (max_awake + 1)`` float64 the sleep-timing program holds at once, NumPy's temporaries
+included (a bound: about 4 measured at grid 4,000)."""
+
+
+def _check_memory(env_id: str, kwargs: dict[str, Any], grid: int) -> None:
+    """Refuse a ``--grid`` whose solve would need more memory than the machine has, before it starts."""
+    from heartpole.optimum.common import max_awake
+    from heartpole.registry import env_dynamics
+
+    try:
+        columns = max_awake(env_dynamics(env_id, kwargs).params) + 1
+    except (ValueError, TypeError):
+        return  # the solve says what is wrong with the env or its parameters
+    needed, total = SOLVER_ARRAYS * grid * columns * 8, _physical_memory()
+    if total is not None and needed > total:
+        raise CommandError(
+            f"--grid {grid}: the solver would need about {needed / 2**30:,.0f} GiB of memory ({SOLVER_ARRAYS} arrays "
+            f"of {grid:,} x {columns} numbers), more than this machine's {total / 2**30:,.0f} GiB; give a smaller "
+            f"--grid (default 400; the grid's error falls as 1 / grid**2)"
+        )
+
+
+def _physical_memory() -> int | None:
+    """The machine's memory in bytes, or ``None`` where the system does not say."""
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):
+        return None
 
 
 def _param_error(error: Exception, items: list[str]) -> str:

@@ -41,15 +41,15 @@ The default space (see heartpole.scale.default_space):
   gamma          uniform 0.90 .. 0.999          n_steps    PPO 32..512, A2C 5..32 (powers of two, and 5)
   net_width      16, 32, 64, 128, 256           net_depth  1, 2, 3 (net_arch = [net_width] * net_depth)
 
-Written to --out: search.json (the settings), search/ (Ray Tune's state: --resume continues an interrupted
-search from it), trials/<id>/ (each trial's seeds), trials.csv (one row per trial), best_preset.json (for
+Written to --out: search.json (the settings), search/ (Ray Tune's state, pickles: --resume --trust-pickles continues an
+interrupted search from it), trials/<id>/ (each trial's seeds), trials.csv (one row per trial), best_preset.json (for
 'heartpole train --preset FILE'), search.png (the objective per trial) and tune_summary.json.
 """
 
 EPILOG = """\
 examples:
   heartpole tune --trials 20 --seeds-per-trial 2 --timesteps 200000 --out runs/tune-ppo
-  heartpole tune --resume --out runs/tune-ppo           # continue an interrupted search
+  heartpole tune --resume --trust-pickles --out runs/tune-ppo   # continue an interrupted search of yours
   heartpole tune --trials 100 --address auto --out /shared/tune-ppo   # on a Ray cluster
   heartpole train --preset runs/tune-ppo/best_preset.json --seeds 0-9
 """
@@ -77,6 +77,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--out", metavar="DIR", help="output folder (default: runs/tune-<algo>)")
     parser.add_argument("--resume", action="store_true", help="continue the interrupted search in --out")
     parser.add_argument("--force", action="store_true", help="replace an earlier search in --out")
+    parser.add_argument("--trust-pickles", action="store_true", help="with --resume: let Ray Tune unpickle the "
+                        "saved search in --out (search/tuner.pkl and its state), which can run any code the "
+                        "folder's author chose: only for a search you trust")  # fmt: skip
     parser.add_argument("--address", metavar="ADDR", help="a Ray cluster to join, e.g. auto or ray://host:10001 "
                         "(default: start Ray on this machine)")  # fmt: skip
     parser.add_argument("--cpus-per-trial", default="1", metavar="K", help="CPUs per trial (default 1)")
@@ -132,7 +135,7 @@ def run_tune(args: argparse.Namespace) -> int:
         raise CommandError(" ".join(str(error).split())) from None
     out = Path(not_empty("--out", args.out) or f"runs/tune-{settings.base.algo}").resolve()
     try:
-        scale.prepare_search_folder(out, args.resume, args.force)
+        scale.prepare_search_folder(out, args.resume, args.force, trust_pickles=args.trust_pickles)
     except ValueError as error:
         raise CommandError(str(error)) from None
     paths.expect_output(out)  # once the search is complete in --out, a signal ends the command as a success
@@ -140,7 +143,7 @@ def run_tune(args: argparse.Namespace) -> int:
         print(_announce(scale.read_settings(out) if args.resume else settings, out, args.resume), flush=True)
     try:
         summary = scale.tune_search(settings, out, resume=args.resume, force=args.force, address=args.address,
-                                    cpus_per_trial=cpus)  # fmt: skip
+                                    cpus_per_trial=cpus, trust_pickles=args.trust_pickles)  # fmt: skip
     except scale.AllTrialsFailedError as error:
         for failure in error.failures:
             print(failure.line(), file=sys.stderr)
@@ -148,7 +151,8 @@ def run_tune(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # Ctrl-C, SIGTERM or SIGHUP: --out holds the search to resume, or what it held
         if args.force or paths.outputs_placed() or not scale.can_resume(out):  # --force: the earlier search is back
             raise
-        print(f"heartpole tune: interrupted; continue with: heartpole tune --resume --out {out}", file=sys.stderr)
+        print(f"heartpole tune: interrupted; continue with: heartpole tune --resume --trust-pickles --out {out}",
+              file=sys.stderr)  # fmt: skip
         return files.exit_code()
     except ConnectionError as error:
         raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None

@@ -42,7 +42,7 @@ from heartpole.model import TIME_ELAPSED, WORK_DONE, check_integer
 from heartpole.policies import policy_name
 from heartpole.rewards import expected_risk
 from heartpole.rng import COUNTER, KEY_HIGH, KEY_LOW
-from heartpole.rollout import base_env, episode_people, vector_env
+from heartpole.rollout import base_env, episode_people, invalid_actions, vector_env
 from heartpole.truth import people_truth
 
 JaxPolicy = Callable[..., jax.Array]
@@ -90,16 +90,28 @@ class Totals(NamedTuple):
     sleeps: jax.Array
 
 
+class ActionCheck(NamedTuple):
+    """The first step at which a policy chose an action outside ``0..num_actions - 1``: whether there was one
+    (``found``) and that step's smallest and largest actions, as NumPy's evaluation reports them."""
+
+    found: jax.Array
+    low: jax.Array
+    high: jax.Array
+
+
 def _kahan(total: jax.Array, error: jax.Array, value: jax.Array) -> tuple[jax.Array, jax.Array]:
     corrected = value - error
     new = total + corrected
     return new, (new - total) - corrected
 
 
-def rollout(env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: jax.Array) -> tuple[Totals, jax.Array]:
+def rollout(
+    env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: jax.Array
+) -> tuple[Totals, jax.Array, ActionCheck]:
     """Every episode of ``start`` played to its end by ``act``, drawing from its generator state: ``(totals,
-    scores)``, the per-episode `Totals` and final scores. Traceable: ``jit`` it (and ``vmap`` over ``act``'s
-    parameters to evaluate several policies at once)."""
+    scores, check)``, the per-episode `Totals`, final scores and the `ActionCheck` of ``act``'s actions (the
+    results mean nothing where ``check.found``: the caller refuses them). Traceable: ``jit`` it (and ``vmap``
+    over ``act``'s parameters to evaluate several policies at once)."""
     n, num_variables = start.person.shape[0], env.num_variables
     zeros = (jnp.float32(0.0),) * num_variables
     drinks = jnp.asarray([a.is_drink for a in env.dynamics.actions], dtype=jnp.int32)
@@ -123,24 +135,39 @@ def rollout(env: HeartPoleJax, params: EnvParams, act: Act, start: Start, key: j
     advance = jax.vmap(env.advance, in_axes=(None, 0, 0, None, 0))
     observe = jax.vmap(env.get_obs)
 
+    num_actions = len(env.dynamics.actions)
+
     def step(
-        carry: tuple[EnvState, jax.Array, Totals], t: jax.Array
-    ) -> tuple[tuple[EnvState, jax.Array, Totals], None]:
-        state, counter, totals = carry
+        carry: tuple[EnvState, jax.Array, Totals, ActionCheck], t: jax.Array
+    ) -> tuple[tuple[EnvState, jax.Array, Totals, ActionCheck], None]:
+        state, counter, totals, check = carry
         actions = act(observe(state), start.max_steps - t, person, jax.random.fold_in(key, t))
+        low, high = jnp.min(actions), jnp.max(actions)
+        first = ((low < 0) | (high >= num_actions)) & ~check.found
+        check = ActionCheck(check.found | first, jnp.where(first, low, check.low), jnp.where(first, high, check.high))
         uniforms = draw(key_low, key_high, counter)
         _, state, reward, _, info = advance(key, state, actions, params, uniforms)
         returns, returns_error = _kahan(totals.returns, totals.returns_error, reward)
         risks, risks_error = _kahan(totals.risks, totals.risks_error, info["heart_attack_risk"])
         totals = Totals(returns, returns_error, risks, risks_error, totals.attacks + info["heart_attack"],
                         totals.drinks + drinks[actions], totals.sleeps + sleeps[actions])  # fmt: skip
-        return (state, counter + jnp.uint32(1), totals), None
+        return (state, counter + jnp.uint32(1), totals, check), None
 
     floats, ints = jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32)
     counter = jnp.asarray(start.generators[COUNTER])
-    carry = (state, counter, Totals(floats, floats, floats, floats, ints, ints, ints))
-    (state, _, totals), _ = jax.lax.scan(step, carry, jnp.arange(start.max_steps, dtype=jnp.int32))
-    return totals, MODEL.score(state.variables[WORK_DONE], state.variables[TIME_ELAPSED])
+    check = ActionCheck(jnp.bool_(False), jnp.int32(0), jnp.int32(0))
+    carry = (state, counter, Totals(floats, floats, floats, floats, ints, ints, ints), check)
+    (state, _, totals, check), _ = jax.lax.scan(step, carry, jnp.arange(start.max_steps, dtype=jnp.int32))
+    return totals, MODEL.score(state.variables[WORK_DONE], state.variables[TIME_ELAPSED]), check
+
+
+def policy_key(seed: int) -> int:
+    """The seed of the JAX key a random policy draws from: ``seed`` itself below 2**63 (what ``jax.random.key``
+    takes), and for larger seeds (which ``heartpole.evaluate`` accepts too) 63 bits derived from it."""
+    if seed < 2**63:
+        return seed
+    high, low = (int(x) for x in np.random.SeedSequence(seed).generate_state(2, np.uint32))
+    return ((high << 32) | low) & (2**63 - 1)
 
 
 def _check_cohort(env: HeartPoleJax) -> None:
@@ -152,19 +179,42 @@ def _check_cohort(env: HeartPoleJax) -> None:
         )
 
 
-def _act(policy: str | JaxPolicy, env_id: str, env_kwargs: Mapping[str, Any]) -> tuple[Act, str]:
-    """``policy`` as an `Act` and its display name."""
+def _act(
+    policy: str | JaxPolicy, env_id: str, env_kwargs: Mapping[str, Any], num_actions: int, name: str | None = None
+) -> tuple[Act, str]:
+    """``policy`` as an `Act` and its display name (``name`` if given). The actions' shape and dtype are checked
+    as the policy is traced (``ValueError`` with NumPy's evaluation's message); their values by
+    [`rollout`][heartpole.jax.evaluation.rollout]'s `ActionCheck`."""
     if isinstance(policy, str):
         return builtin_act(policy, env_id, env_kwargs), policy
     if not callable(policy):
         raise ValueError(f"policy must be a JAX function of observation batches or a built-in name, got {policy!r}")
     wants_left = bool(getattr(policy, "needs_decisions_left", False))
+    label = policy_name(policy) if name is None else name
 
     def act(obs: jax.Array, left: jax.Array, person: jax.Array, key: jax.Array) -> jax.Array:
-        actions = policy(obs, left) if wants_left else policy(obs)
-        return jnp.asarray(actions).astype(jnp.int32)
+        raw = policy(obs, left) if wants_left else policy(obs)
+        actions, size = jnp.asarray(raw), obs.shape[0]
+        shape, dtype = tuple(getattr(raw, "shape", actions.shape)), _dtype(raw, actions)  # as NumPy sees them
+        if shape != (size,):
+            raise ValueError(invalid_actions(label, size, num_actions, shape=shape))
+        if dtype.kind not in "iu":
+            raise ValueError(invalid_actions(label, size, num_actions, dtype=dtype))
+        return actions.astype(jnp.int32)
 
-    return act, policy_name(policy)
+    return act, label
+
+
+def _dtype(raw: object, actions: jax.Array) -> np.dtype[Any]:
+    """The dtype of a policy's return as ``numpy.asarray`` gives it (float64 for a list of floats, where JAX
+    would say float32), so that the refusal names what NumPy's evaluation names."""
+    dtype = getattr(raw, "dtype", None)
+    if dtype is None:
+        try:
+            dtype = np.asarray(raw).dtype
+        except Exception:  # noqa: BLE001 - a list holding traced values: JAX's own dtype
+            dtype = actions.dtype
+    return np.dtype(dtype)
 
 
 def evaluate(
@@ -182,8 +232,9 @@ def evaluate(
     policy, are the episodes (``num_envs`` fixes the chunks whose seeds start them, as there).
 
     Raises:
-        ValueError: bad arguments, an unknown built-in, an env with ``measurement`` (its noise is the NumPy
-            env's) or with a distribution of people.
+        ValueError: bad arguments, an unknown built-in, a policy returning invalid actions (refused as
+            ``heartpole.evaluate`` refuses them, with its message, before any result is made), an env with
+            ``measurement`` (its noise is the NumPy env's) or with a distribution of people.
 
     >>> from heartpole.jax import evaluate
     >>> result = evaluate("expert", episodes=20, env_kwargs={"max_steps": 100})
@@ -222,21 +273,26 @@ def evaluate_batch(
     solution = optimum_or_reason(env_id, env_kwargs) if regret else None
     start = Start.of(env_id, env_kwargs, episodes, seed, chunk)
     started = time.perf_counter()
-    key = jax.random.key(seed)
+    key = jax.random.key(policy_key(seed))
+    num_actions = len(env.dynamics.actions)
     if batch is None:
-        act, name = _act(policy, env_id, env_kwargs)
-        totals, scores = jax.jit(lambda: rollout(env, env.default_params, act, start, key))()
-        totals, scores, labels = jax.tree_util.tree_map(lambda x: x[None], (totals, scores)) + ([name],)
+        act, name = _act(policy, env_id, env_kwargs, num_actions)
+        outputs = jax.jit(lambda: rollout(env, env.default_params, act, start, key))()
+        totals, scores, check = jax.tree_util.tree_map(lambda x: x[None], outputs)
+        labels = [name]
     else:
         name = policy if isinstance(policy, str) else policy_name(policy)
 
-        def one(weights: Any) -> tuple[Totals, jax.Array]:
-            act, _ = _act(lambda obs: policy(weights, obs), env_id, env_kwargs)  # type: ignore[operator]
+        def one(weights: Any) -> tuple[Totals, jax.Array, ActionCheck]:
+            act, _ = _act(lambda obs: policy(weights, obs), env_id, env_kwargs, num_actions, name)  # type: ignore[operator]
             return rollout(env, env.default_params, act, start, key)
 
-        totals, scores = jax.jit(jax.vmap(one))(batch)
+        totals, scores, check = jax.jit(jax.vmap(one))(batch)
         labels = names or [f"{name}[{i}]" for i in range(int(scores.shape[0]))]
-    totals, scores = jax.device_get((totals, scores))
+    totals, scores, check = jax.device_get((totals, scores, check))
+    for found, low, high in zip(*check):
+        if found:
+            raise ValueError(invalid_actions(name, start.person.shape[0], num_actions, low=low, high=high))
     seconds = (time.perf_counter() - started) / len(labels)
     penalty = env.dynamics.params.heart_attack_penalty
     results = []

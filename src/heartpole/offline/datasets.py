@@ -55,7 +55,7 @@ from heartpole.offline.population import (
     people_suffix,
     person_infos,
 )
-from heartpole.offline.recorded import minari_env_options, recorded_metadata, recorded_spec
+from heartpole.offline.recorded import check_dataset_env, minari_env_options, recorded_metadata, recorded_spec
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
 from heartpole.people import People
 from heartpole.policies import Policy, load_policy, policy_name
@@ -474,14 +474,17 @@ def load_local(target_id: str) -> MinariDataset:
     """``minari.load_dataset(target_id)`` for a dataset in the local folder; never downloads.
 
     Raises:
-        ValueError: for an id that is not in the local folder, listing the ones that are.
+        ValueError: for an id that is not in the local folder, listing the ones that are; metadata naming an env
+            that is not HeartPole's ([`check_dataset_env`][heartpole.offline.recorded.check_dataset_env]).
     """
     import minari
 
-    if not (_root() / target_id / "data" / "metadata.json").is_file():
+    metadata = _root() / target_id / "data" / "metadata.json"
+    if not metadata.is_file():
         known = local_dataset_ids()
         listing = ", ".join(known) if known else "none; record one with 'heartpole dataset'"
         raise ValueError(f"unknown dataset id {target_id!r} in {_root()}; local datasets: {listing}")
+    check_dataset_env(metadata)
     with quiet_version_warnings():
         return minari.load_dataset(target_id)
 

@@ -26,7 +26,9 @@ registered (its ``register_variant`` run) before its dataset's env is recovered,
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -35,7 +37,7 @@ from gymnasium.envs.registration import EnvSpec
 from heartpole.measurement import Measurement
 from heartpole.offline.population import measurement_metadata, people_from_dict, people_metadata
 from heartpole.people import People
-from heartpole.registry import env_dynamics, quiet_version_warnings
+from heartpole.registry import check_heartpole_id, env_dynamics, heartpole_ids, quiet_version_warnings
 
 ENTRY_POINT = "heartpole.offline.recorded:recorded_env"
 """The single env's entry point of a dataset's spec."""
@@ -108,7 +110,8 @@ def recorded_metadata(env_id: str, env_kwargs: Mapping[str, Any]) -> dict[str, A
 def recorded_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
     """Gymnasium's entry point of a dataset's spec: the registered env ``env_id`` made with ``kwargs``, their
     JSON descriptions turned back into a population and a measurement (``gymnasium.make`` of the spec adds the
-    time limit and the checks)."""
+    time limit and the checks). ``env_id`` must be a HeartPole id (it comes from a dataset's file)."""
+    check_heartpole_id(env_id, "a dataset's env spec")
     with quiet_version_warnings():
         return gym.make(env_id, **_objects(kwargs)).unwrapped
 
@@ -116,8 +119,53 @@ def recorded_env(env_id: str, **kwargs: Any) -> gym.Env[Any, Any]:
 def recorded_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv[Any, Any, Any]:
     """Gymnasium's vector entry point of a dataset's spec: ``num_envs`` envs of ``env_id`` on its native vector
     env, made with ``kwargs`` as [`recorded_env`][heartpole.offline.recorded.recorded_env] makes one."""
+    check_heartpole_id(env_id, "a dataset's env spec")
     with quiet_version_warnings():
         return gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **_objects(kwargs))
+
+
+def check_dataset_env(metadata_path: str | Path) -> None:
+    """Check a dataset's ``metadata.json`` before Minari reads it: its ``env_id`` and the id of its env specs
+    (``env_spec``, ``eval_env_spec``) must be HeartPole ids, and the specs' entry points HeartPole's, without
+    wrappers, so that neither loading the dataset nor ``recover_environment()`` imports another module.
+
+    Raises:
+        ValueError: naming the file and what in it is refused.
+    """
+    source = f"dataset metadata {metadata_path}"
+    try:
+        metadata = json.loads(Path(metadata_path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{source} cannot be read ({' '.join(str(error).split())})") from None
+    if not isinstance(metadata, dict):
+        raise ValueError(f"{source} is not a JSON object")
+    check_heartpole_id(metadata.get("env_id", "HeartPole-v0"), source)
+    ids = heartpole_ids()
+    entry_points = {ENTRY_POINT, *(gym.registry[i].entry_point for i in ids)}
+    vector_entry_points = {None, VECTOR_ENTRY_POINT, *(gym.registry[i].vector_entry_point for i in ids)}
+    for key in ("env_spec", "eval_env_spec"):
+        text = metadata.get(key)
+        if text is None:
+            continue
+        try:
+            spec = json.loads(text) if isinstance(text, str) else None
+        except json.JSONDecodeError:
+            spec = None
+        if not isinstance(spec, dict):
+            raise ValueError(f"{source}: {key} is not an env spec in JSON")
+        check_heartpole_id(spec.get("id"), f"{source} ({key})")
+        kwargs = spec.get("kwargs")
+        if isinstance(kwargs, dict) and "env_id" in kwargs:
+            check_heartpole_id(kwargs["env_id"], f"{source} ({key} kwargs)")
+        if spec.get("entry_point") not in entry_points or spec.get("vector_entry_point") not in vector_entry_points:
+            raise ValueError(
+                f"{source}: {key} names entry points {spec.get('entry_point')!r} and {spec.get('vector_entry_point')!r}"
+                f", not HeartPole's ({ENTRY_POINT!r}); nothing was imported"
+            )
+        if spec.get("additional_wrappers"):
+            raise ValueError(
+                f"{source}: {key} adds wrappers, which HeartPole's datasets never do; nothing was imported"
+            )
 
 
 def _json_kwargs(env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
@@ -145,6 +193,7 @@ def _objects(kwargs: Mapping[str, Any]) -> dict[str, Any]:
 __all__ = [
     "ENTRY_POINT",
     "VECTOR_ENTRY_POINT",
+    "check_dataset_env",
     "minari_env_options",
     "recorded_metadata",
     "recorded_env",

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from heartpole.offline.behaviour import EpsilonGreedy, check_deterministic, sample
-from heartpole.registry import quiet_version_warnings
+from heartpole.registry import heartpole_ids, quiet_version_warnings
 from heartpole.rewards import expected_risk
 from heartpole.rollout import base_env, check_actions, episode_steps, vector_env
 
@@ -248,6 +248,8 @@ def _penalty(dataset: MinariDataset) -> float:
     import gymnasium as gym
 
     env_id = dataset.storage.metadata.get("env_id", "HeartPole-v0")
+    if env_id not in heartpole_ids():  # never made (nor its module imported): the default penalty
+        return 100.0
     with quiet_version_warnings():
         try:
             env = gym.make(env_id)

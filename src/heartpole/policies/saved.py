@@ -108,7 +108,7 @@ def _greedy_actor(model: Any) -> Callable[[np.ndarray], np.ndarray] | None:
     if "torch" not in sys.modules or policy is None:
         return None
     from stable_baselines3.common.distributions import CategoricalDistribution
-    from stable_baselines3.common.policies import ActorCriticPolicy
+    from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 
     if type(policy) is not ActorCriticPolicy or not isinstance(policy.action_dist, CategoricalDistribution):
         return None
@@ -117,10 +117,11 @@ def _greedy_actor(model: Any) -> Callable[[np.ndarray], np.ndarray] | None:
 
     def act(obs: np.ndarray) -> np.ndarray:
         with torch.inference_mode():
-            # given the actor's extractor, extract_features returns one tensor (a pair only without one)
-            features: Any = policy.extract_features(
-                torch.as_tensor(obs, device=policy.device), policy.pi_features_extractor
-            )
+            # the actor's features as SB3's get_distribution takes them: BasePolicy's extract_features with the
+            # actor's extractor, one tensor whether or not the critic shares it (ActorCriticPolicy's own
+            # extract_features returns the pair (actor's, critic's) when share_features_extractor=False)
+            obs_tensor = torch.as_tensor(obs, device=policy.device)
+            features = BasePolicy.extract_features(policy, obs_tensor, policy.pi_features_extractor)
             logits = policy.action_net(policy.mlp_extractor.forward_actor(features))
             return np.asarray(logits.argmax(dim=1).cpu().numpy(), dtype=np.int64)
 

@@ -18,6 +18,7 @@ from typing import Any
 from ray import tune
 
 from heartpole import files, training
+from heartpole.registry import check_heartpole_id
 from heartpole.scale.trials import (
     AllTrialsFailedError,
     SearchInterruptedError,
@@ -153,10 +154,24 @@ def can_resume(folder: str | os.PathLike[str]) -> bool:
     return (folder / SEARCH_SETTINGS_FILE).is_file() and tune.Tuner.can_restore(str(folder / SEARCH_NAME))
 
 
-def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, force: bool = False) -> Path:
+RESUME_PICKLE = "tuner.pkl"
+"""The file of Ray Tune's saved search (in ``search/``) that resuming unpickles first; its experiment state and
+searcher state are unpickled after it."""
+
+
+class UntrustedSearchError(ValueError):
+    """A search that only unpickling Ray Tune's saved state could resume (which can run code), without
+    ``trust_pickles``: refused before Ray read anything."""
+
+
+def prepare_search_folder(
+    folder: str | os.PathLike[str], resume: bool = False, force: bool = False, *, trust_pickles: bool = False
+) -> Path:
     """Check, before any trial runs, that a search may run in ``folder``; return it as an absolute ``Path``.
 
-    With ``resume`` it must hold a search to continue. Otherwise it must be missing or empty, or, with
+    With ``resume`` it must hold a search to continue, and ``trust_pickles`` must be given: Ray Tune resumes a
+    search by unpickling its saved state (``search/tuner.pkl``, the experiment and searcher state), and
+    unpickling can run any code the folder's author chose. Otherwise it must be missing or empty, or, with
     ``force``, hold an earlier search (its [`SEARCH_SETTINGS_FILE`][heartpole.scale.search.SEARCH_SETTINGS_FILE]), which
     [`tune_search`][heartpole.scale.search.tune_search] replaces
     once the new search is done: ``force`` never removes anything else.
@@ -164,6 +179,7 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
     Raises:
         ValueError: ``resume`` with ``force``, nothing to resume, a file in the way, a non-empty folder
             without ``force``, or with ``force`` a folder that holds no search.
+        UntrustedSearchError: ``resume`` without ``trust_pickles``; nothing from the folder was read.
     """
     out = Path(folder).resolve()
     if resume:
@@ -171,6 +187,12 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
             raise ValueError("--resume continues the search in --out and --force replaces it: give one")
         if not can_resume(out):
             raise ValueError(f"--resume: no search to continue in {out}")
+        if not trust_pickles:
+            raise UntrustedSearchError(
+                f"--resume would unpickle {out / SEARCH_NAME / RESUME_PICKLE} (Ray Tune's saved search), which can "
+                "run any code its author chose; nothing from it was run. Resume only a search you trust: pass "
+                "--trust-pickles (trust_pickles=True in Python)"
+            )
         return out
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file, not a folder")
@@ -183,8 +205,13 @@ def prepare_search_folder(folder: str | os.PathLike[str], resume: bool = False, 
 
 
 def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:
-    """The settings of the search in ``folder``."""
-    return SearchSettings.from_dict(json.loads((Path(folder) / SEARCH_SETTINGS_FILE).read_text()))
+    """The settings of the search in ``folder``; its env id must be a HeartPole id (checked before anything makes
+    it: a ``ValueError`` otherwise)."""
+    path = Path(folder) / SEARCH_SETTINGS_FILE
+    data = json.loads(path.read_text())
+    base = data.get("base") if isinstance(data, dict) else None
+    check_heartpole_id(base.get("env_id", "HeartPole-v0") if isinstance(base, dict) else None, str(path))
+    return SearchSettings.from_dict(data)
 
 
 def tune_search(
@@ -198,6 +225,7 @@ def tune_search(
     address: str | None = None,
     num_cpus: int | None = None,
     cpus_per_trial: int = 1,
+    trust_pickles: bool = False,
 ) -> dict[str, Any]:
     """Search hyperparameters with Optuna on Ray Tune; write the results into ``folder``; return them.
 
@@ -211,9 +239,11 @@ def tune_search(
     first (Optuna enqueues them). With ``resume``, the settings saved in ``folder`` are used and ``settings`` is
     ignored; finished trials are kept, unfinished ones rerun, failed ones stay failed. ``folder`` is checked by
     [`prepare_search_folder`][heartpole.scale.search.prepare_search_folder]; ``force`` replaces an earlier search once
-    the new one is done.
+    the new one is done. Resuming unpickles Ray Tune's saved state, which can run code: it needs
+    ``trust_pickles``.
 
     Raises:
+        UntrustedSearchError: ``resume`` without ``trust_pickles`` (before Ray reads anything).
         AllTrialsFailedError: every trial failed (``tune_summary.json`` and ``trials.csv`` are still written).
         SearchInterruptedError: a signal stopped the search; it stays in ``folder`` to resume.
         KeyboardInterrupt: a signal stopped it before it could resume, or with ``force``: ``folder`` is as it was.
@@ -222,7 +252,7 @@ def tune_search(
     from ray.tune.search.optuna import OptunaSearch
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
-    folder = prepare_search_folder(folder, resume, force)
+    folder = prepare_search_folder(folder, resume, force, trust_pickles=trust_pickles)
     earlier = not resume and folder.is_dir() and any(folder.iterdir())
     if resume:
         settings = read_settings(folder)

@@ -19,6 +19,7 @@ from heartpole.policies import (  # the run's file names and the algorithms, eac
 )
 from heartpole.records import env_solved_bar as env_solved_bar  # the bars every backend's summary reports
 from heartpole.records import meets_bar as meets_bar
+from heartpole.registry import check_heartpole_id
 from heartpole.solved import V0_HEART_ATTACKS_AT_MOST, V0_SCORE_AT_LEAST
 from heartpole.training.checks import check_config, check_net_arch
 from heartpole.training.reward import ENV_REWARD, SHAPED_REWARD, TrainingReward
@@ -304,8 +305,9 @@ def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
     the configuration is returned.
 
     Raises:
-        ValueError: the file is not JSON, not a preset file, or holds a bad configuration: the message names the
-            file, the key, its value and what is accepted.
+        ValueError: the file is not JSON, not a preset file, or holds a bad configuration (an ``env_id`` that is
+            not a HeartPole id is refused before anything imports or makes it): the message names the file, the
+            key, its value and what is accepted.
         OSError: the file cannot be read.
     """
     try:
@@ -314,6 +316,7 @@ def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
         raise ValueError(f"preset file {path} is not JSON: {error}") from None
     if not isinstance(data, dict) or data.get("format") != PRESET_FORMAT or not isinstance(data.get("config"), dict):
         raise ValueError(f"{path} is not a preset file (expected a JSON object with format {PRESET_FORMAT!r})")
+    check_heartpole_id(data["config"].get("env_id", TrainConfig.env_id), f"preset file {path}")
     try:
         config = TrainConfig.from_dict(data["config"])
         check_config(config)
