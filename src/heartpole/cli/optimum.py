@@ -139,7 +139,7 @@ def _history(
     from heartpole.progress import progress
     from heartpole.registry import env_dynamics
 
-    solved = solve_history(solution.params)
+    solved = interruptible(lambda: solve_history(solution.params))
     floor = solution.expected_return - solution.expected_score  # the heart-attack part: the same for both
     rows = [
         ("expected return, its policy", solved.lower + floor, "exact on its waking grid"),
