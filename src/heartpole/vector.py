@@ -27,8 +27,8 @@ from heartpole.env import (
     observation_space,
 )
 from heartpole.measurement import Measurement
-from heartpole.model import Variable, check_integer
 from heartpole.observation import Observer, Seen, observe
+from heartpole.parameters import Variable, check_integer
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
 
