@@ -6,14 +6,14 @@ rows of memory side by side (the states' variables, the generator states, each r
 the same index. The C library hands out large blocks at the same offset from a 4,096-byte boundary, and rows of
 16,384 float32 are 64 kB apart, so every row's ``i``-th value fell into the same set of the L1 cache (64 sets of
 64 bytes, 8 ways): more rows than ways, and the cache evicted at every step of the loop. Carved from one block
-at offsets chosen a few cache lines apart, each array's rows fall into a set of their own: the v0 loop at
-16,384 envs went from about 98 to 65-70 us on the project's AMD EPYC (`benchmarks/speed.py`'s anatomy).
+at offsets chosen a few cache lines apart, each array's rows fall into a set of their own (what it earns:
+docs/speed.md).
 
 **Taken back** ([`Recycler`][heartpole.arrays.Recycler]). A step returns new arrays (its observations, rewards
 and ``info`` values), as Gymnasium's vector envs do: the caller owns them. Most callers drop them before long
-(they copy what they keep). Allocating them anew at every step costs more than writing them: at 65,536 envs the
-C library handed the freed blocks back to the system and every step faulted their pages in again (several
-hundred page faults a step), and a new block may lie outside the caches. The recycler reuses an earlier step's
+(they copy what they keep). Allocating them anew at every step costs more than writing them: at large sizes the
+C library hands the freed blocks back to the system and every step faults their pages in again (docs/speed.md
+counts them), and a new block may lie outside the caches. The recycler reuses an earlier step's
 arrays where the only references left to them are its own, as NumPy itself reuses a temporary whose reference
 count says nobody else can see it. A caller that keeps any of them, a view of one (a view holds the block it
 was carved from), a memoryview or a tensor sharing its memory keeps them all as they are: the step then makes

@@ -237,7 +237,7 @@ def _selector(positions: tuple[int, ...], num_variables: int) -> Any:
     """A compiled ``select(effects, table, action)``: the first action's ``effects`` with, at each of
     ``positions`` of the action ``table`` (rows of `row_width`), the number of the action it belongs to where that
     is ``action``. Written out as one expression per number, its indices constants of the code: one function
-    for numba to compile, not one per position (which took v1's loops three times as long to compile)."""
+    for numba to compile, not one per position (slower to compile: docs/speed.md)."""
     width = row_width(num_variables)
     owners: dict[int, list[int]] = {}  # column -> the positions of the actions whose number differs there
     for position in positions:
@@ -351,9 +351,8 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
 
 SELECTED_NUMBERS = 64
 """Up to this many numbers named by the selection (`selection_for`), the loop over envs selects each env's action
-effects with masks (`select`); with more, with gathers (masks outgrow the registers). At 16,384 envs on our AMD
-EPYC: v0 (11 numbers) 58 us a step with masks, v1 (33) 100 us with masks, 165 us with gathers. A mask per
-action and number (v1: about 200), as before the selection, made LLVM give up vectorising (5,000 us)."""
+effects with masks (`select`); with more, with gathers (masks outgrow the registers). The figures that set it:
+docs/speed.md, "What each mechanism of the loop earned"."""
 
 
 def masked(selection: Any) -> bool:

@@ -9,10 +9,8 @@ no formula of its own) with those numbers read per env from two arguments:
 * ``cells``, ``(columns, num_envs)`` float32: row ``c`` holds every env's value of column ``c`` (numbers equal
   for every person share a column: HeartPole's two fading variables fade alike). Each varying number costs one
   contiguous load per env (LLVM vectorises them: the loop's arrays are declared not to overlap,
-  `heartpole.jit.no_alias`); the shared numbers are read once, as in the v0 loop. (Gathering each env's
-  numbers from a table of the people by person index, as before, added about twice as much time to the v0
-  loop at 16,384 envs; at 16,384 envs the loops are bound by memory traffic, and each column costs about
-  as much as one of the state's variables.)
+  `heartpole.jit.no_alias`); the shared numbers are read once, as in the v0 loop (what a column costs,
+  against gathering each env's numbers by person index: docs/speed.md).
 * ``overlay`` ([`overlay_for`][heartpole.person_kernel.overlay_for]): an empty array whose structured dtype says which
   numbers the cells replace: a field ``p{position}`` (the number's index in the raveled packed tables,
   [`pack`][heartpole.kernel.pack]) at byte offset ``4 * column``. numba compiles a loop per argument type, so the
