@@ -12,6 +12,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole.arrays
+from heartpole import kernel
 from heartpole.arrays import LINE, PAGE, SLOTS, SPACING, Recycler, new_results, staggered
 
 
@@ -136,6 +137,24 @@ def test_the_loops_own_arrays_start_at_their_slots_when_made_copied_and_pickled(
             if array is not None:
                 assert array.flags.carray and array.ctypes.data % PAGE == SLOTS[slot] * LINE % PAGE, slot
         assert (made._cells is None) == (people is None)
+
+
+def test_a_steps_arrays_are_named_and_come_back_named() -> None:
+    """new_results gives the loop's StepResults, each array named for what it holds (the OUTPUTS by their dtypes),
+    and the recycler hands back the same kind of tuple when it reuses them as when it makes them."""
+    results = new_results(100, 6)
+    assert type(results) is kernel.StepResults
+    assert results._fields == (*kernel.OUTPUTS, "observations", "actions")
+    for name, dtype in kernel.OUTPUTS.items():
+        assert getattr(results, name).dtype == dtype and getattr(results, name).shape == (100,), name
+    assert results.observations.shape == (6, 100) and results.actions.dtype == kernel.ACTION_DTYPE
+    recycler = Recycler(lambda: new_results(100, 6))
+    made = recycler()
+    made_ids = [id(a) for a in made]
+    del made
+    recycler()
+    again = recycler()
+    assert type(again) is kernel.StepResults and [id(a) for a in again] == made_ids  # reused, and named
 
 
 def test_a_step_keeps_its_observations_in_a_block_of_their_own() -> None:

@@ -64,14 +64,16 @@ def placed(array: np.ndarray, slot: str) -> np.ndarray:
     return copy
 
 
-def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs
-    ([`OUTPUTS`][heartpole.kernel.OUTPUTS]), then for the loop's copy of the new states (the observations),
-    ``(num_variables, count)`` float32, and for the actions as [`ACTION_DTYPE`][heartpole.kernel.ACTION_DTYPE]."""
+def new_results(count: int, num_variables: int) -> kernel.StepResults:
+    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s [`StepResults`][heartpole.kernel.StepResults]
+    of ``count`` envs: its [`OUTPUTS`][heartpole.kernel.OUTPUTS], the loop's copy of the new states (the
+    observations), ``(num_variables, count)`` float32, and the actions as
+    [`ACTION_DTYPE`][heartpole.kernel.ACTION_DTYPE]."""
     vectors = [((count,), dtype) for dtype in (*kernel.OUTPUTS.values(), kernel.ACTION_DTYPE)]
-    *outputs, actions = staggered(vectors, SLOTS["results"])
+    reward, productivity, risk, attack, score, actions = staggered(vectors, SLOTS["results"])
     (observations,) = staggered([((num_variables, count), np.float32)], SLOTS["observations"])
-    return (*outputs, observations, actions)  # two blocks: a caller who keeps the observations keeps no more
+    # two blocks: a caller who keeps the observations keeps no more
+    return kernel.StepResults(reward, productivity, risk, attack, score, observations, actions)
 
 
 COUNTED = sys.implementation.name == "cpython" and getattr(sys, "_is_gil_enabled", lambda: True)()
@@ -97,13 +99,14 @@ class Recycler:
     the same in both, on any CPython version.
     """
 
-    def __init__(self, make: Callable[[], tuple[np.ndarray, ...]], keep: int = 2) -> None:
+    def __init__(self, make: Callable[[], Sequence[np.ndarray]], keep: int = 2) -> None:
         self._make, self._keep = make, keep
+        self._build: Callable[[Sequence[np.ndarray]], Any] = tuple  # as make() gives them: a NamedTuple's _make
         self._kept: list[list[np.ndarray]] = []  # oldest first
         self._alone: tuple[int, ...] = ()
         self._handed = 0  # how many of a kept list's arrays go out: the rest are the blocks they were carved from
 
-    def __call__(self) -> tuple[np.ndarray, ...]:
+    def __call__(self) -> Any:
         """Arrays for this step: an earlier step's if nobody else holds any of them, else new ones."""
         kept = self._kept
         newest = len(kept) - 1 if COUNTED else -1  # the newest first: the likeliest to be in the caches still
@@ -111,8 +114,11 @@ class Recycler:
             arrays = kept[index]
             if _counts(arrays) == self._alone:
                 kept.append(kept.pop(index))
-                return tuple(arrays[: self._handed])  # a new tuple each time: whoever holds it holds the arrays
-        arrays = list(self._make())
+                return self._build(arrays[: self._handed])  # a new tuple each time: whoever holds it holds them
+        made = self._make()
+        self._build = getattr(type(made), "_make", tuple)
+        arrays = list(made)
+        del made  # held here, it would count in the arrays' references
         handed = len(arrays)
         arrays += {id(a.base): a.base for a in arrays if isinstance(a.base, np.ndarray)}.values()  # their blocks
         kept.append(arrays)
@@ -120,7 +126,7 @@ class Recycler:
             del kept[0]
         if not self._alone:  # the first arrays, before anyone saw them: held here alone
             self._alone, self._handed = _counts(arrays), handed
-        return tuple(arrays[:handed])
+        return self._build(arrays[:handed])
 
     def __getstate__(self) -> dict[str, object]:
         """A pickle or copy keeps how to make the arrays, not the arrays (nor counts, which another Python may

@@ -252,7 +252,7 @@ class HeartPoleVectorEnv(VectorEnv):
             self._refuse(array, actions)
         n = self.num_envs
         results = self._results()  # they go out as they are: new, or the last step's if nobody holds them
-        reward, worked, risk, attack, new_score, observed, action = results
+        reward, action, attack = results.reward, results.actions, results.heart_attack
         stepped = restart is None or not restart.all()
         if stepped:  # the loop checks the actions and converts them into `action` before it changes anything
             loop = self._loop or self._plan_loop(results, array)
@@ -262,7 +262,8 @@ class HeartPoleVectorEnv(VectorEnv):
             self._refuse(array, actions)
         present = self._everyone.copy()  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
-        for key, mask, value in zip(INFO_KEYS, INFO_MASKS, (action, attack, risk, worked, new_score)):
+        values = (action, attack, results.heart_attack_risk, results.productivity, results.score)
+        for key, mask, value in zip(INFO_KEYS, INFO_MASKS, values):
             info[key], info[mask] = value, present
         self._clock += 1
         if restart is not None:  # NEXT_STEP autoreset: these envs start afresh instead of stepping
@@ -280,7 +281,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._person_info(info, present)
         # the loop's copy of the states is the observation unless some env restarted or the observer adds to it
         copied = stepped and restart is None and self._observer.plain
-        obs, self._ended = observed.T if copied else self._observations(), None
+        obs, self._ended = results.observations.T if copied else self._observations(), None
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
@@ -316,7 +317,7 @@ class HeartPoleVectorEnv(VectorEnv):
         return tuple(frames)
 
     # ----------------------------------------------------------------------------------------------------
-    def _plan_loop(self, results: tuple[np.ndarray, ...], action: np.ndarray) -> Any:
+    def _plan_loop(self, results: kernel.StepResults, action: np.ndarray) -> Any:
         """The compiled loop over envs (v0's or the people's) for the types of this env's arrays, called without
         numba's dispatch (`heartpole.env.compiled_for`), kept for every later step: the arguments after the
         actions and the generator states are in `_loop_arguments`."""
