@@ -57,8 +57,20 @@ class HeartPoleVectorEnv(VectorEnv):
     ``HeartPole().reset(seed=s)`` bit for bit. Keyword arguments are the single env's.
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
-    Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
-    variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
+    Observations are copies of the state (never the state itself) in column-major (Fortran) order, as
+    ``CartPoleVectorEnv``'s are: each variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
+
+    **The arrays a step returns** are the caller's while it holds any of them: the env never writes to one of a
+    step's arrays while anything outside it holds one of them, by reference, by a view (``obs[1:]``, ``obs.T``),
+    a memoryview or a tensor sharing its memory (holding one holds them all). Once nothing does, a later step may
+    take them back and write its own results into them (`heartpole.arrays.Recycler`): ``obs`` (where it is the
+    loop's copy of the state: no env restarted in the step, no traits or measurement observed; else it is new),
+    ``reward`` and ``info``'s ``action_taken``, ``heart_attack``, ``heart_attack_risk``, ``productivity`` and
+    ``score``. A weak reference does not hold them: through one alone, such an array may show a later step's
+    values. Only CPython with its GIL tells by reference counts (`heartpole.arrays.COUNTED`); elsewhere (PyPy, a
+    free-threaded build) every step returns new arrays. ``terminated``, ``truncated``, ``info``'s ``_key`` masks
+    and ``final_obs``/``final_info`` are new at every step; ``info["person"]`` and ``info["traits"]`` are
+    read-only arrays that the env replaces (never writes) when it draws new people.
 
     ``info`` holds the single env's keys ([`INFO_KEYS`][heartpole.vector.INFO_KEYS]: ``action_taken``, the index of the
     action taken, ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
