@@ -57,6 +57,22 @@ def test_arrays_held_in_any_way_never_come_back(hold) -> None:
     np.testing.assert_array_equal(after, before)
 
 
+def test_the_tuple_held_alone_holds_its_arrays() -> None:
+    """The recycler hands back the very tuple it made, not a new one: whoever holds the tuple holds its arrays."""
+    recycler = Recycler(make_arrays)
+    held = recycler()
+    before = [array.copy() for array in held]
+    for _ in range(5):
+        again = recycler()
+        assert again is not held
+        for array in again:
+            array[...] = 7.0
+        del again, array
+    assert [id(a) for a in recycler()] == [id(a) for a in recycler()]  # dropped at once: the same come back
+    for array, value in zip(held, before):
+        np.testing.assert_array_equal(array, value)
+
+
 def test_a_copy_or_a_pickle_keeps_how_to_make_the_arrays_not_the_arrays() -> None:
     recycler = Recycler(make_arrays)
     recycler(), recycler()

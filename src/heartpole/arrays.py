@@ -82,14 +82,15 @@ build, whose counts are deferred and split between threads) a [`Recycler`][heart
 reuses arrays."""
 
 
-def _counts(arrays: list[np.ndarray]) -> tuple[int, ...]:
-    """The reference counts of ``arrays``, as this very code sees them (its own references included)."""
-    return tuple(map(sys.getrefcount, arrays))
+def _counts(held: list[Any]) -> tuple[int, ...]:
+    """The reference counts of ``held``, as this very code sees them (its own references included)."""
+    return tuple(map(sys.getrefcount, held))
 
 
 class Recycler:
-    """Fresh arrays from ``make()`` for each step, or those of an earlier step that only this recycler still holds
-    (it checks the blocks they were carved from too: a view of one holds its block, not the array).
+    """The tuple of arrays ``make()`` gives, new for a step, or an earlier step's (the very tuple) where only this
+    recycler still holds it and its arrays (it checks the blocks they were carved from too: a view of one holds
+    its block, not the array).
 
     It keeps the arrays of the last ``keep`` steps: a caller's loop (``obs, reward, ... = env.step(actions)``)
     still holds the last step's while it makes the next, so with two kept, the step before that's come back;
@@ -99,34 +100,29 @@ class Recycler:
     the same in both, on any CPython version.
     """
 
-    def __init__(self, make: Callable[[], Sequence[np.ndarray]], keep: int = 2) -> None:
+    def __init__(self, make: Callable[[], tuple[np.ndarray, ...]], keep: int = 2) -> None:
         self._make, self._keep = make, keep
-        self._build: Callable[[Sequence[np.ndarray]], Any] = tuple  # as make() gives them: a NamedTuple's _make
-        self._kept: list[list[np.ndarray]] = []  # oldest first
+        self._kept: list[list[Any]] = []  # oldest first: each a tuple ``make()`` gave, its arrays, their blocks
         self._alone: tuple[int, ...] = ()
-        self._handed = 0  # how many of a kept list's arrays go out: the rest are the blocks they were carved from
 
     def __call__(self) -> Any:
-        """Arrays for this step: an earlier step's if nobody else holds any of them, else new ones."""
+        """The arrays for this step: an earlier step's tuple if nobody else holds it or any of its arrays, else a
+        new one. Handing back the very tuple, not a new one, costs nothing; whoever holds it holds its arrays."""
         kept = self._kept
         newest = len(kept) - 1 if COUNTED else -1  # the newest first: the likeliest to be in the caches still
         for index in range(newest, -1, -1):
-            arrays = kept[index]
-            if _counts(arrays) == self._alone:
+            if _counts(kept[index]) == self._alone:
                 kept.append(kept.pop(index))
-                return self._build(arrays[: self._handed])  # a new tuple each time: whoever holds it holds them
-        made = self._make()
-        self._build = getattr(type(made), "_make", tuple)
-        arrays = list(made)
-        del made  # held here, it would count in the arrays' references
-        handed = len(arrays)
-        arrays += {id(a.base): a.base for a in arrays if isinstance(a.base, np.ndarray)}.values()  # their blocks
-        kept.append(arrays)
+                return kept[-1][0]
+        held: list[Any] = [self._make()]
+        held += held[0]
+        held += {id(a.base): a.base for a in held[1:] if isinstance(a.base, np.ndarray)}.values()  # their blocks
+        kept.append(held)
         if len(kept) > self._keep:
             del kept[0]
         if not self._alone:  # the first arrays, before anyone saw them: held here alone
-            self._alone, self._handed = _counts(arrays), handed
-        return self._build(arrays[:handed])
+            self._alone = _counts(held)
+        return held[0]
 
     def __getstate__(self) -> dict[str, object]:
         """A pickle or copy keeps how to make the arrays, not the arrays (nor counts, which another Python may
