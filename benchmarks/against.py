@@ -4,8 +4,8 @@
     python benchmarks/speed.py --against c32f124 --rounds 7 --sizes 16384 --measures vector
 
 REV is checked out as a git worktree in a temporary folder (removed at the end, on Ctrl-C and SIGTERM too).
-Both trees are measured by this file's code in fresh Python processes, each importing its own tree's
-sources (``PYTHONPATH=<tree>/src`` with this interpreter; numba caches its compiled loops beside each
+Both trees are measured by this tree's ``speed.py --child`` in fresh Python processes, each importing its own
+tree's sources (``PYTHONPATH=<tree>/src`` with this interpreter; numba caches its compiled loops beside each
 tree's sources, and a warm-up process per tree fills that cache before any timing). Each measurement is a
 ratio to its anchor measured in the same process, anchor-subject-anchor (the subject's rate over the
 geometric mean of the two anchors', so that a load that rises or falls during the process cancels), timed
@@ -42,7 +42,7 @@ TREE = HERE.parent
 """The tree this file belongs to: its sources are "this tree"."""
 
 MEASURE_KINDS = ("single", "make", "vector", "people")
-CLOCKS = ("cpu", "wall")  # speed.CLOCKS' names: this module imports speed (and heartpole) only in its children
+CLOCKS = ("cpu", "wall")  # speed.CLOCKS' names: speed.py imports this module, never the other way
 
 
 @dataclass(frozen=True)
@@ -170,8 +170,9 @@ class Tree:
         return {**os.environ, "PYTHONPATH": str(self.root / "src")}
 
     def child(self, *arguments: str) -> Any:
-        """Run this file in a fresh process on the tree's sources; its JSON answer."""
-        command = [sys.executable, str(Path(__file__).resolve()), *arguments]
+        """Run ``speed.py --child ARGUMENTS`` (this tree's, beside this file) in a fresh process on the tree's
+        sources; its JSON answer."""
+        command = [sys.executable, str(HERE / "speed.py"), "--child", *arguments]
         done = subprocess.run(command, capture_output=True, text=True, env=self.environment())
         if done.returncode != 0:
             raise RuntimeError(f"{self.label}: {' '.join(arguments)} failed:\n{done.stderr[-3000:]}")
@@ -290,38 +291,3 @@ def report(plan: list[Measure], trees: list[Tree]) -> None:
 
 def _machine(tree: Tree) -> str:
     return tree.child("--machine")["machine"]  # type: ignore[no-any-return]
-
-
-# ---------------------------------------------------------------------------------------------------------
-# The child processes: they import speed.py (which imports heartpole from the tree on PYTHONPATH).
-def child_main(arguments: list[str]) -> None:
-    """``--warm-up NAME...``, ``--pair SUBJECT ANCHOR NUM_ENVS STEPS CLOCK`` or ``--machine``: one JSON line."""
-    import time
-
-    import speed
-
-    if arguments[0] == "--machine":
-        print(json.dumps({"machine": speed.machine_line()}))
-    elif arguments[0] == "--warm-up":
-        start = time.perf_counter()
-        available = [name for name in arguments[1:] if speed.warm_up(name)]
-        file = speed.heartpole.__file__
-        print(json.dumps({"available": available, "file": file, "seconds": time.perf_counter() - start}))
-    elif arguments[0] == "--pair":
-        subject, anchor, num_envs, steps, clock = (
-            arguments[1],
-            arguments[2],
-            int(arguments[3]),
-            int(arguments[4]),
-            arguments[5],
-        )
-        first = speed.measure(anchor, num_envs, steps, clock=clock)
-        rate = speed.measure(subject, num_envs, steps, clock=clock)
-        last = speed.measure(anchor, num_envs, steps, clock=clock)
-        print(json.dumps({"subject": rate, "anchors": [first, last]}))
-    else:
-        raise SystemExit(f"unknown child arguments {arguments!r}")
-
-
-if __name__ == "__main__":
-    child_main(sys.argv[1:])

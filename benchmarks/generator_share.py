@@ -109,8 +109,8 @@ def main() -> None:
         env.reset(seed=0)
         env.step(actions)
         results = env._results()
-        results[6][:] = actions
-        runs.append((loop, (env._envs, results, results[6], env._rng, *env._loop_arguments), []))
+        results.actions[:] = actions
+        runs.append((loop, (env._envs, results, results.actions, env._rng, *env._loop_arguments), []))
         loop(*runs[-1][1])  # compiled before timing
     for _ in range(args.blocks):
         for loop, arguments, times in runs:

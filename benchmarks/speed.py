@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import json
 import os
 import platform
 import resource
@@ -347,7 +348,36 @@ def busy(enabled: bool) -> Iterator[None]:
             process.wait()
 
 
+def child(arguments: list[str]) -> None:
+    """What ``against.py`` runs in each tree's fresh process (``speed.py --child ...``), answering one JSON line:
+    ``--machine``, ``--warm-up NAME...`` or ``--pair SUBJECT ANCHOR NUM_ENVS STEPS CLOCK`` (the anchor, the
+    subject, the anchor again)."""
+    if arguments[:1] == ["--machine"]:
+        print(json.dumps({"machine": machine_line()}))
+    elif arguments[:1] == ["--warm-up"]:
+        start = time.perf_counter()
+        available = [name for name in arguments[1:] if warm_up(name)]
+        print(json.dumps({"available": available, "file": heartpole.__file__, "seconds": time.perf_counter() - start}))
+    elif arguments[:1] == ["--pair"] and len(arguments) == 6:
+        subject, anchor, num_envs, steps, clock = (
+            arguments[1],
+            arguments[2],
+            int(arguments[3]),
+            int(arguments[4]),
+            arguments[5],
+        )
+        first = measure(anchor, num_envs, steps, clock=clock)
+        rate = measure(subject, num_envs, steps, clock=clock)
+        last = measure(anchor, num_envs, steps, clock=clock)
+        print(json.dumps({"subject": rate, "anchors": [first, last]}))
+    else:
+        raise SystemExit(f"unknown child arguments {arguments!r}")
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["--child"]:
+        child(sys.argv[2:])
+        return
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="3 pairs per figure instead of 7")
     parser.add_argument("--repeats", type=int, help="pairs per figure")

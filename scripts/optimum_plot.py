@@ -25,8 +25,9 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from heartpole.model import Params, productivity
+    from heartpole.model import productivity
     from heartpole.optimum import optimum
+    from heartpole.parameters import Params
     from heartpole.policies import expert_rate
 
     solution = optimum("HeartPole-v0")

@@ -12,6 +12,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole.arrays
+from heartpole import kernel
 from heartpole.arrays import LINE, PAGE, SLOTS, SPACING, Recycler, new_results, staggered
 
 
@@ -54,6 +55,22 @@ def test_arrays_held_in_any_way_never_come_back(hold) -> None:
             array[...] = 7.0
     after = np.asarray(held) if not isinstance(held, dict) else held["info"]
     np.testing.assert_array_equal(after, before)
+
+
+def test_the_tuple_held_alone_holds_its_arrays() -> None:
+    """The recycler hands back the very tuple it made, not a new one: whoever holds the tuple holds its arrays."""
+    recycler = Recycler(make_arrays)
+    held = recycler()
+    before = [array.copy() for array in held]
+    for _ in range(5):
+        again = recycler()
+        assert again is not held
+        for array in again:
+            array[...] = 7.0
+        del again, array
+    assert [id(a) for a in recycler()] == [id(a) for a in recycler()]  # dropped at once: the same come back
+    for array, value in zip(held, before):
+        np.testing.assert_array_equal(array, value)
 
 
 def test_a_copy_or_a_pickle_keeps_how_to_make_the_arrays_not_the_arrays() -> None:
@@ -136,6 +153,24 @@ def test_the_loops_own_arrays_start_at_their_slots_when_made_copied_and_pickled(
             if array is not None:
                 assert array.flags.carray and array.ctypes.data % PAGE == SLOTS[slot] * LINE % PAGE, slot
         assert (made._cells is None) == (people is None)
+
+
+def test_a_steps_arrays_are_named_and_come_back_named() -> None:
+    """new_results gives the loop's StepResults, each array named for what it holds (the OUTPUTS by their dtypes),
+    and the recycler hands back the same kind of tuple when it reuses them as when it makes them."""
+    results = new_results(100, 6)
+    assert type(results) is kernel.StepResults
+    assert results._fields == (*kernel.OUTPUTS, "observations", "actions")
+    for name, dtype in kernel.OUTPUTS.items():
+        assert getattr(results, name).dtype == dtype and getattr(results, name).shape == (100,), name
+    assert results.observations.shape == (6, 100) and results.actions.dtype == kernel.ACTION_DTYPE
+    recycler = Recycler(lambda: new_results(100, 6))
+    made = recycler()
+    made_ids = [id(a) for a in made]
+    del made
+    recycler()
+    again = recycler()
+    assert type(again) is kernel.StepResults and [id(a) for a in again] == made_ids  # reused, and named
 
 
 def test_a_step_keeps_its_observations_in_a_block_of_their_own() -> None:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from heartpole.cli import main
-from heartpole.model import Params
 from heartpole.optimum import NotCoveredError, optimum, solve
 from heartpole.optimum import solution as solution_module
+from heartpole.parameters import Params
 from heartpole.registry import env_dynamics
 
 

@@ -1,10 +1,14 @@
 """benchmarks/against.py (``speed.py --against REV``): its configuration is its command line, a bad REV or
-option is refused by name, and the worktree of REV is gone when it ends, however it ends."""
+option is refused by name, the worktree of REV is gone when it ends, however it ends, and it runs speed.py in its
+children without importing it (speed.py imports against.py, never the other way)."""
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib.util
+import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -66,6 +70,31 @@ def test_bad_options_are_refused_by_name(words: list[str], match: str) -> None:
 def test_a_clock_it_does_not_have_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match="--clock must be one of cpu wall, got 'sundial'"):
         against.Config(clock="sundial")
+
+
+def imported(path: Path) -> set[str]:
+    """The top-level names of the modules ``path`` imports, wherever in the file."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names |= {alias.name.split(".")[0] for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_speed_imports_against_and_not_the_other_way() -> None:
+    assert "against" in imported(BENCHMARKS / "speed.py")
+    assert "speed" not in imported(BENCHMARKS / "against.py")
+
+
+def test_a_child_answers_one_json_line_and_refuses_what_it_does_not_know() -> None:
+    command = [sys.executable, str(BENCHMARKS / "speed.py"), "--child"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    done = subprocess.run([*command, "--machine"], capture_output=True, text=True, env=env, timeout=300, check=True)
+    assert json.loads(done.stdout.strip().splitlines()[-1])["machine"].startswith("machine: ")
+    refused = subprocess.run([*command, "--sundial"], capture_output=True, text=True, env=env, timeout=300)
+    assert refused.returncode != 0 and "unknown child arguments ['--sundial']" in refused.stderr
 
 
 @needs_git

@@ -15,7 +15,8 @@ import jax.numpy as jnp  # noqa: E402
 import heartpole  # noqa: E402
 from heartpole.dynamics import Dynamics  # noqa: E402
 from heartpole.jax import EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
-from heartpole.model import ALERTNESS, HYPERTENSION, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT, Params  # noqa: E402
+from heartpole.model import ALERTNESS, HYPERTENSION, INTOXICATION, TIME_ELAPSED, TIME_SINCE_SLEPT  # noqa: E402
+from heartpole.parameters import Params  # noqa: E402
 from heartpole.people import People, Person, Sample, Uniform  # noqa: E402
 
 pytestmark = pytest.mark.slow  # people: a cohort solved, their loop compiled (minutes in all)

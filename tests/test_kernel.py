@@ -18,7 +18,7 @@ import pytest
 from numba import njit
 
 import heartpole
-from heartpole import kernel, model
+from heartpole import kernel, model, parameters
 from heartpole.actions import V1_ACTIONS, V1_VARIABLES
 from heartpole.dynamics import Dynamics
 from tests.tutorial_model import bell, logistic
@@ -299,7 +299,7 @@ def test_the_selection_names_exactly_the_numbers_that_differ_from_the_first_acti
     signed[2, 3] = -0.0  # beer lowers time_since_slept's effect by -0.0: the same number, other bits
     assert f"p{2 * width + 3}" in kernel.selection_for(signed, 4).dtype.names
     # no sleep and no fading make sleep's rest and fades equal to doing nothing's: the loop stays v0's all the same
-    for params in (model.Params(sleep_half_hours=0), model.Params(decay_rate=1.0)):
+    for params in (parameters.Params(sleep_half_hours=0), parameters.Params(decay_rate=1.0)):
         assert Dynamics(params=params).selection.dtype == dynamics.selection.dtype
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from heartpole.measurement import Measurement
-from heartpole.model import V0_VARIABLES, variable_names
+from heartpole.parameters import V0_VARIABLES, variable_names
 
 NAMES = variable_names(V0_VARIABLES)
 N = 40_000

@@ -17,7 +17,7 @@ import pytest
 import heartpole
 from heartpole import model
 from heartpole.dynamics import Dynamics, step_tables
-from heartpole.model import TIME_ELAPSED, TIME_SINCE_SLEPT, WORK_DONE, Params, productivity
+from heartpole.model import TIME_ELAPSED, TIME_SINCE_SLEPT, WORK_DONE, productivity
 from heartpole.optimum import (
     DRINKING_ACTIONS,
     NotCoveredError,
@@ -28,6 +28,7 @@ from heartpole.optimum import (
     solve,
     solve_params,
 )
+from heartpole.parameters import Params
 from heartpole.policies import expert_rate
 
 OPTIMUM_V0, SCORE_V0, EXPERT_V0 = -123.30429, 0.32687, -123.30504

@@ -14,8 +14,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from heartpole.model import Params
 from heartpole.optimum import check_beer
+from heartpole.parameters import Params
 from heartpole.people import DEFAULT_COHORT, PERSON_FIELDS, TASK_FIELDS, People, Person, Uniform
 
 N = 20_000

@@ -10,7 +10,11 @@ import pytest
 pytest.importorskip("matplotlib")
 
 import heartpole  # noqa: E402
-from heartpole import model, plots  # noqa: E402
+from heartpole import (  # noqa: E402
+    model,
+    parameters,  # noqa: E402
+    plots,
+)
 
 
 def png_size(path: Path) -> tuple[int, int]:
@@ -53,7 +57,7 @@ def test_model_figures_draw_the_models_functions(tmp_path: Path) -> None:
         "ballmer": model.ballmer,
     }
     for stem, function in curves.items():
-        figure = plots.MODEL_FIGURES[stem](model.Params())
+        figure = plots.MODEL_FIGURES[stem](parameters.Params())
         line = figure.axes[0].lines[0]
         np.testing.assert_allclose(line.get_ydata(), function(np.asarray(line.get_xdata())))
     path = tmp_path / "risk.png"
@@ -66,7 +70,7 @@ def test_a_change_to_the_model_shows_up_in_the_plots(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(model, "ballmer", lambda x: 0.5 * np.ones_like(x))
     after = plots.ballmer_figure().axes[0].lines[0].get_ydata()
     assert before.max() > 1.9 and np.all(after == 0.5)
-    figure = plots.heart_attack_risk_figure(model.Params(heart_attack_proclivity=0.2))
+    figure = plots.heart_attack_risk_figure(parameters.Params(heart_attack_proclivity=0.2))
     assert figure.axes[0].lines[0].get_ydata().max() == pytest.approx(0.2, abs=0.01)
 
 
@@ -84,7 +88,7 @@ def test_productivity_heat_map_is_the_model_on_a_grid(tmp_path: Path) -> None:
 def test_trace_records_the_episode_as_the_env_plays_it() -> None:
     trace = plots.trace_episode(cycle, seed=4, max_steps=40)
     assert trace.states.shape == (41, 6) and trace.actions.shape == (40,)
-    assert trace.names == model.variable_names(model.V0_VARIABLES)
+    assert trace.names == parameters.variable_names(parameters.V0_VARIABLES)
     assert trace.sleeps == (False, False, False, True)
     assert set(trace.actions.tolist()) == {0, 1, 2, 3}
     env = heartpole.HeartPole(max_steps=40)
@@ -121,7 +125,7 @@ def test_variant_variables_get_a_panel() -> None:
     if "HeartPole-v1" not in gym.registry:
         pytest.skip("no HeartPole-v1 registered")
     trace = plots.trace_episode(lambda obs: np.zeros(len(obs), dtype=np.int64), "HeartPole-v1", max_steps=5)
-    extra = [name for name in trace.names if name not in model.variable_names(model.V0_VARIABLES)]
+    extra = [name for name in trace.names if name not in parameters.variable_names(parameters.V0_VARIABLES)]
     assert len(plots.episode_figure(trace).axes) == 5 + len(extra)
 
 

@@ -14,8 +14,9 @@ import pytest
 import heartpole
 from heartpole.actions import V0_ACTIONS
 from heartpole.dynamics import Dynamics
-from heartpole.model import Params, productivity
+from heartpole.model import productivity
 from heartpole.optimum import NotCoveredError
+from heartpole.parameters import Params
 from heartpole.policies import (
     BUILTIN_POLICIES,
     ExpertPolicy,

@@ -7,7 +7,8 @@ import itertools
 import numpy as np
 import pytest
 
-from heartpole.model import Params, heart_attack_risk
+from heartpole.model import heart_attack_risk
+from heartpole.parameters import Params
 from heartpole.rewards import expected_risk, risk_floor, training_reward
 
 PENALTY = Params.heart_attack_penalty

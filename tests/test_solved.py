@@ -7,7 +7,7 @@ import math
 import pytest
 
 from heartpole import solved
-from heartpole.model import Params
+from heartpole.parameters import Params
 from heartpole.policies import env_dynamics
 from heartpole.registry import BUILTIN_REWARD_THRESHOLDS, V0_ID, V1_ID, best_known_rate
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import re
+import weakref
 
 import gymnasium as gym
 import numpy as np
@@ -14,6 +15,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import heartpole
+import heartpole.arrays
 from heartpole.env import RESET_INFO
 from heartpole.vector import INFO_DTYPES, INFO_KEYS
 
@@ -189,6 +191,63 @@ def test_an_observation_handed_out_stays_as_it_was_through_later_steps_and_resta
     assert len({id(obs) for obs in handed}) == len(handed) and not any(
         np.shares_memory(a, b) for i, a in enumerate(handed) for b in handed[i + 1 :]
     )
+
+
+TAKEN_BACK = ("obs", "reward", *INFO_KEYS)
+"""The arrays of a step that a later one may take back (the class docstring's contract)."""
+
+
+def held_step(env: heartpole.HeartPoleVectorEnv, actions: np.ndarray) -> dict[str, np.ndarray]:
+    """One step's arrays that a later step may take back, by name, after the env has taken back arrays before."""
+    for _ in range(3):
+        env.step(actions)  # dropped at once: from here on each step hands back the arrays of an earlier one
+    obs, reward, _, _, info = env.step(actions)
+    return {"obs": obs, "reward": reward, **{key: info[key] for key in INFO_KEYS}}
+
+
+def weakly(arrays: dict[str, np.ndarray]) -> dict[str, weakref.ref[np.ndarray]]:
+    """Weak references to ``arrays`` but the observations (``obs`` is a transposed view, made anew at each step, of
+    the array the env takes back: a weak reference to it dies with it)."""
+    return {name: weakref.ref(array) for name, array in arrays.items() if name != "obs"}
+
+
+@pytest.mark.skipif(not heartpole.arrays.COUNTED, reason="arrays are taken back only where reference counts tell")
+@pytest.mark.parametrize("people", [None, "default"])
+@pytest.mark.parametrize("hold", ["reference", "view", "one view"])
+def test_a_steps_arrays_keep_their_values_through_later_steps_while_held(hold: str, people) -> None:
+    env = make(6, people=people)
+    env.reset(seed=0)
+    actions = np.arange(6) % 4
+    arrays = held_step(env, actions)
+    values = {name: array.copy() for name, array in arrays.items()}
+    if hold == "reference":
+        held = {name: (array, values[name]) for name, array in arrays.items()}
+    elif hold == "view":
+        held = {name: (array[1:], values[name][1:]) for name, array in arrays.items()}
+    else:  # a view of the observations alone holds every array of the step: the others watched weakly
+        held = {"obs": (arrays["obs"][1:], values["obs"][1:])}
+    watched = weakly(arrays)
+    del arrays
+    for _ in range(6):
+        env.step(actions)  # each step's arrays dropped at once, as a loop that copies what it keeps
+    for name, (array, value) in held.items():
+        np.testing.assert_array_equal(array, value, err_msg=name)
+    assert set(held) | set(watched) == set(TAKEN_BACK)
+    for name, reference in watched.items():
+        array = reference()  # alive while the env keeps it to take back (None: gone, and no step wrote to it)
+        if array is not None:
+            np.testing.assert_array_equal(array, values[name], err_msg=name)
+
+
+@pytest.mark.skipif(not heartpole.arrays.COUNTED, reason="arrays are taken back only where reference counts tell")
+def test_a_weak_reference_alone_does_not_hold_a_steps_arrays() -> None:
+    env = make(6)
+    env.reset(seed=0)
+    actions = np.arange(6) % 4
+    watched = weakly(held_step(env, actions))
+    obs, reward, _, _, info = env.step(actions)  # takes back the arrays nothing holds: the step before's
+    later = weakly({"obs": obs, "reward": reward, **{key: info[key] for key in INFO_KEYS}})
+    assert all(watched[name]() is later[name]() is not None for name in TAKEN_BACK[1:])
 
 
 def test_step_and_reset_leave_the_callers_actions_and_returned_info_alone() -> None:

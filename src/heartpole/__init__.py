@@ -25,8 +25,6 @@ from heartpole.actions import V0_ACTIONS, Action
 from heartpole.dynamics import Dynamics
 from heartpole.env import HeartPole, HeartPoleEnv
 from heartpole.model import (
-    Params,
-    Variable,
     alertness_decay,
     ballmer,
     crippling_anxiety,
@@ -35,6 +33,7 @@ from heartpole.model import (
     productivity,
     sigmoid,
 )
+from heartpole.parameters import Params, Variable
 from heartpole.registry import register_envs
 from heartpole.vector import HeartPoleVectorEnv
 
@@ -61,7 +60,7 @@ __all__ = [
 ]
 
 from heartpole.actions import V1_ACTIONS, V1_VARIABLES  # noqa: E402
-from heartpole.model import V0_VARIABLES  # noqa: E402
+from heartpole.parameters import V0_VARIABLES  # noqa: E402
 from heartpole.registry import register_variant  # noqa: E402
 from heartpole.variants import HeartPoleV1, HeartPoleV1VectorEnv  # noqa: E402
 

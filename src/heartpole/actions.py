@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from heartpole.model import V0_VARIABLES, Variable, check_integer, check_pair
+from heartpole.parameters import V0_VARIABLES, Variable, check_integer, check_pair
 
 MAX_REST_HALF_HOURS = 48
 """The longest rest an action may take (a day): each rest half-hour is computed every step."""

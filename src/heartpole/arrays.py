@@ -6,14 +6,14 @@ rows of memory side by side (the states' variables, the generator states, each r
 the same index. The C library hands out large blocks at the same offset from a 4,096-byte boundary, and rows of
 16,384 float32 are 64 kB apart, so every row's ``i``-th value fell into the same set of the L1 cache (64 sets of
 64 bytes, 8 ways): more rows than ways, and the cache evicted at every step of the loop. Carved from one block
-at offsets chosen a few cache lines apart, each array's rows fall into a set of their own: the v0 loop at
-16,384 envs went from about 98 to 65-70 us on the project's AMD EPYC (`benchmarks/speed.py`'s anatomy).
+at offsets chosen a few cache lines apart, each array's rows fall into a set of their own (what it earns:
+docs/speed.md).
 
 **Taken back** ([`Recycler`][heartpole.arrays.Recycler]). A step returns new arrays (its observations, rewards
 and ``info`` values), as Gymnasium's vector envs do: the caller owns them. Most callers drop them before long
-(they copy what they keep). Allocating them anew at every step costs more than writing them: at 65,536 envs the
-C library handed the freed blocks back to the system and every step faulted their pages in again (several
-hundred page faults a step), and a new block may lie outside the caches. The recycler reuses an earlier step's
+(they copy what they keep). Allocating them anew at every step costs more than writing them: at large sizes the
+C library hands the freed blocks back to the system and every step faults their pages in again (docs/speed.md
+counts them), and a new block may lie outside the caches. The recycler reuses an earlier step's
 arrays where the only references left to them are its own, as NumPy itself reuses a temporary whose reference
 count says nobody else can see it. A caller that keeps any of them, a view of one (a view holds the block it
 was carved from), a memoryview or a tensor sharing its memory keeps them all as they are: the step then makes
@@ -64,14 +64,16 @@ def placed(array: np.ndarray, slot: str) -> np.ndarray:
     return copy
 
 
-def new_results(count: int, num_variables: int) -> tuple[np.ndarray, ...]:
-    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s results of ``count`` envs
-    ([`OUTPUTS`][heartpole.kernel.OUTPUTS]), then for the loop's copy of the new states (the observations),
-    ``(num_variables, count)`` float32, and for the actions as [`ACTION_DTYPE`][heartpole.kernel.ACTION_DTYPE]."""
+def new_results(count: int, num_variables: int) -> kernel.StepResults:
+    """Fresh arrays for [`step_envs`][heartpole.kernel.step_envs]'s [`StepResults`][heartpole.kernel.StepResults]
+    of ``count`` envs: its [`OUTPUTS`][heartpole.kernel.OUTPUTS], the loop's copy of the new states (the
+    observations), ``(num_variables, count)`` float32, and the actions as
+    [`ACTION_DTYPE`][heartpole.kernel.ACTION_DTYPE]."""
     vectors = [((count,), dtype) for dtype in (*kernel.OUTPUTS.values(), kernel.ACTION_DTYPE)]
-    *outputs, actions = staggered(vectors, SLOTS["results"])
+    reward, productivity, risk, attack, score, actions = staggered(vectors, SLOTS["results"])
     (observations,) = staggered([((num_variables, count), np.float32)], SLOTS["observations"])
-    return (*outputs, observations, actions)  # two blocks: a caller who keeps the observations keeps no more
+    # two blocks: a caller who keeps the observations keeps no more
+    return kernel.StepResults(reward, productivity, risk, attack, score, observations, actions)
 
 
 COUNTED = sys.implementation.name == "cpython" and getattr(sys, "_is_gil_enabled", lambda: True)()
@@ -80,14 +82,15 @@ build, whose counts are deferred and split between threads) a [`Recycler`][heart
 reuses arrays."""
 
 
-def _counts(arrays: list[np.ndarray]) -> tuple[int, ...]:
-    """The reference counts of ``arrays``, as this very code sees them (its own references included)."""
-    return tuple(map(sys.getrefcount, arrays))
+def _counts(held: list[Any]) -> tuple[int, ...]:
+    """The reference counts of ``held``, as this very code sees them (its own references included)."""
+    return tuple(map(sys.getrefcount, held))
 
 
 class Recycler:
-    """Fresh arrays from ``make()`` for each step, or those of an earlier step that only this recycler still holds
-    (it checks the blocks they were carved from too: a view of one holds its block, not the array).
+    """The tuple of arrays ``make()`` gives, new for a step, or an earlier step's (the very tuple) where only this
+    recycler still holds it and its arrays (it checks the blocks they were carved from too: a view of one holds
+    its block, not the array).
 
     It keeps the arrays of the last ``keep`` steps: a caller's loop (``obs, reward, ... = env.step(actions)``)
     still holds the last step's while it makes the next, so with two kept, the step before that's come back;
@@ -99,28 +102,27 @@ class Recycler:
 
     def __init__(self, make: Callable[[], tuple[np.ndarray, ...]], keep: int = 2) -> None:
         self._make, self._keep = make, keep
-        self._kept: list[list[np.ndarray]] = []  # oldest first
+        self._kept: list[list[Any]] = []  # oldest first: each a tuple ``make()`` gave, its arrays, their blocks
         self._alone: tuple[int, ...] = ()
-        self._handed = 0  # how many of a kept list's arrays go out: the rest are the blocks they were carved from
 
-    def __call__(self) -> tuple[np.ndarray, ...]:
-        """Arrays for this step: an earlier step's if nobody else holds any of them, else new ones."""
+    def __call__(self) -> Any:
+        """The arrays for this step: an earlier step's tuple if nobody else holds it or any of its arrays, else a
+        new one. Handing back the very tuple, not a new one, costs nothing; whoever holds it holds its arrays."""
         kept = self._kept
         newest = len(kept) - 1 if COUNTED else -1  # the newest first: the likeliest to be in the caches still
         for index in range(newest, -1, -1):
-            arrays = kept[index]
-            if _counts(arrays) == self._alone:
+            if _counts(kept[index]) == self._alone:
                 kept.append(kept.pop(index))
-                return tuple(arrays[: self._handed])  # a new tuple each time: whoever holds it holds the arrays
-        arrays = list(self._make())
-        handed = len(arrays)
-        arrays += {id(a.base): a.base for a in arrays if isinstance(a.base, np.ndarray)}.values()  # their blocks
-        kept.append(arrays)
+                return kept[-1][0]
+        held: list[Any] = [self._make()]
+        held += held[0]
+        held += {id(a.base): a.base for a in held[1:] if isinstance(a.base, np.ndarray)}.values()  # their blocks
+        kept.append(held)
         if len(kept) > self._keep:
             del kept[0]
         if not self._alone:  # the first arrays, before anyone saw them: held here alone
-            self._alone, self._handed = _counts(arrays), handed
-        return tuple(arrays[:handed])
+            self._alone = _counts(held)
+        return held[0]
 
     def __getstate__(self) -> dict[str, object]:
         """A pickle or copy keeps how to make the arrays, not the arrays (nor counts, which another Python may

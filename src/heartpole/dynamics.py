@@ -1,7 +1,7 @@
 """A HeartPole variant as the numbers its step reads: [`Dynamics`][heartpole.dynamics.Dynamics].
 
 [`Dynamics`][heartpole.dynamics.Dynamics] turns a list of [`Action`][heartpole.actions.Action] s, the state
-[`Variable`][heartpole.model.Variable] s and the [`Params`][heartpole.model.Params] into the
+[`Variable`][heartpole.parameters.Variable] s and the [`Params`][heartpole.parameters.Params] into the
 [`StepTables`][heartpole.model.StepTables] of [`step`][heartpole.model.step] (what each action does to each
 variable, how each variable fades), and into the packed form [`heartpole.kernel`][heartpole.kernel] runs. It holds no
 state of an episode and no formula: the envs hold the state, [`heartpole.model`][heartpole.model] the formulas.
@@ -17,7 +17,8 @@ import numpy as np
 
 from heartpole import kernel
 from heartpole.actions import V0_ACTIONS, Action
-from heartpole.model import BOOKKEEPING, V0_VARIABLES, ActionEffects, Params, StepTables, Variable
+from heartpole.model import ActionEffects, StepTables
+from heartpole.parameters import BOOKKEEPING, V0_VARIABLES, Params, Variable
 
 
 class Dynamics:

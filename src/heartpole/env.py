@@ -17,8 +17,9 @@ from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
 from heartpole.measurement import Measurement
-from heartpole.model import Params, Variable, check_keywords, score
+from heartpole.model import score
 from heartpole.observation import Observer, Seen, observe
+from heartpole.parameters import Params, Variable, check_keywords
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
 
@@ -26,7 +27,8 @@ CONSTRUCTOR_KEYWORDS = (
     "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps", "people",
     "observe_traits", "measurement",
 )  # fmt: skip
-"""The env constructors' own keywords; every other keyword is a [`heartpole.Params`][heartpole.model.Params] field."""
+"""The env constructors' own keywords; every other keyword is a [`heartpole.Params`][heartpole.parameters.Params]
+field."""
 
 # The text log keeps at most this many steps between two renders (the tutorial's log grew without bound).
 LOG_MAX_STEPS = 1000
@@ -220,7 +222,7 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
     ``gymnasium.make("HeartPole-v0", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)``.
     ``heart_attack_proclivity`` in [0, 1] scales the risk; ``max_steps`` >= 1. Variants (see
     [`heartpole.register_variant`][heartpole.registry.register_variant]) also pass ``actions``, ``variables`` and other
-    [`heartpole.Params`][heartpole.model.Params] fields such as ``decay_rate`` or ``sleep_half_hours``.
+    [`heartpole.Params`][heartpole.parameters.Params] fields such as ``decay_rate`` or ``sleep_half_hours``.
 
     ## Differences from the tutorial's code (API only, same dynamics)
     * Gymnasium's API: ``reset(seed=...)`` returns ``(obs, info)`` and ``step`` returns

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
-from heartpole.model import check_integer
+from heartpole.parameters import check_integer
 from heartpole.policies import Policy, available_builtins, load_policy, policy_name
 from heartpole.results import Comparison as Comparison
 from heartpole.results import Episodes as Episodes

@@ -77,7 +77,7 @@ follows NumPy (no ZeroDivisionError
 checks, which stop LLVM from vectorising); the GIL is released. Two of LLVM's fast-math liberties, no
 others: ``contract`` fuses a multiply and an add into one instruction (rounded once), ``arcp`` divides by
 a constant as a multiplication by its reciprocal; infinities, NaNs and the order of operations stay
-IEEE's. They took the v0 loop from 131 to 109 us at 16,384 envs."""
+IEEE's. What they earn: docs/speed.md, "What each mechanism of the loop earned"."""
 
 INLINE: InlineOptions = {"inline": "always"}
 """numba compiles each function on its own and calls it through its own calling convention, which LLVM
@@ -135,8 +135,8 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
 
 VECTOR_WIDTH = 512
 """The vector width, in bits, LLVM may use for the loop over envs (``prefer-vector-width``). On CPUs with
-AVX-512 LLVM otherwise keeps to 256 bits; 512 made the v0 loop about a quarter faster on our Xeon. CPUs
-without AVX-512 ignore it. It is an attribute of the loop's own function, not a process-wide option."""
+AVX-512 LLVM otherwise keeps to 256 bits (what 512 earns: docs/speed.md). CPUs without AVX-512 ignore it. It
+is an attribute of the loop's own function, not a process-wide option."""
 
 
 @intrinsic

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -73,21 +73,9 @@ SMALLEST_NORMAL = F32(np.finfo(np.float32).tiny)
 KEY_LOW, KEY_HIGH, COUNTER = random_numbers.KEY_LOW, random_numbers.KEY_HIGH, random_numbers.COUNTER
 generator_states = random_numbers.generator_states
 
-compiled_rng = random_numbers.rebind(
-    {
-        "u32": U32,
-        "mul32": mul32,
-        "add32": add32,
-        "xor32": xor32,
-        "shr32": shr32,
-        "to_float": F32,
-        "where": where,
-        "replace": tuple_setitem,
-        "kept_by_the_step": _kept_by_the_step,
-    },
-    F32,
-    njit(**JIT, **INLINE),
-)
+_INTEGERS = {"u32": U32, "mul32": mul32, "add32": add32, "xor32": xor32, "shr32": shr32, "to_float": F32}
+_SHARED = {"where": where, "replace": tuple_setitem, "kept_by_the_step": _kept_by_the_step}
+compiled_rng = random_numbers.rebind({**_INTEGERS, **_SHARED}, F32, njit(**JIT, **INLINE))
 """[`heartpole.rng`][heartpole.rng]'s generator, compiled: its 32-bit integer operations are LLVM's own (numba
 would widen uint32 arithmetic to 64 bits, half the vector lanes)."""
 mix32, uniform, draws = compiled_rng.mix32, compiled_rng.uniform, compiled_rng.draws
@@ -104,14 +92,27 @@ TABLES = model.table_fields(model.StepTables)
 ACTION_DTYPE = np.int32
 """The dtype of [`step_envs`][heartpole.kernel.step_envs]'s actions: with 32-bit integers in the loop, LLVM
 vectorises it eight floats wide, with 64-bit ones four wide."""
-OUTPUTS = {
-    "reward": np.float32,
-    "productivity": np.float32,
-    "heart_attack_risk": np.float32,
-    "heart_attack": np.bool_,
-    "score": np.float32,
-}
+OUTPUTS = {"reward": F32, "productivity": F32, "heart_attack_risk": F32, "heart_attack": np.bool_, "score": F32}
 """The results of a step, in [`step_envs`][heartpole.kernel.step_envs]'s order, with their dtypes."""
+
+
+class StepResults(NamedTuple):
+    """The arrays a loop over envs writes, item ``i`` (column ``i``) env ``i``'s: the `OUTPUTS` (their dtypes),
+    a copy of the new states (``(num_variables, num_envs)`` float32) and the actions as `ACTION_DTYPE`."""
+
+    reward: np.ndarray
+    productivity: np.ndarray
+    heart_attack_risk: np.ndarray
+    heart_attack: np.ndarray
+    score: np.ndarray
+    observations: np.ndarray
+    actions: np.ndarray
+
+
+REWARD, PRODUCTIVITY, RISK, ATTACK, SCORE, OBSERVATIONS, ACTIONS = range(len(StepResults._fields))
+"""The positions of `StepResults`' fields, by which compiled code reads them: numba 0.68 loses the writes made
+by name (``results.reward[i] = ...``) in a function inlined into the one that built the tuple (the single env's
+step read 0 for all its results); by position they hold."""
 
 
 WIDTHS = tuple((len(fields.per_variable), len(fields.numbers)) for fields in (EFFECTS, TABLES))
@@ -237,7 +238,7 @@ def _selector(positions: tuple[int, ...], num_variables: int) -> Any:
     """A compiled ``select(effects, table, action)``: the first action's ``effects`` with, at each of
     ``positions`` of the action ``table`` (rows of `row_width`), the number of the action it belongs to where that
     is ``action``. Written out as one expression per number, its indices constants of the code: one function
-    for numba to compile, not one per position (which took v1's loops three times as long to compile)."""
+    for numba to compile, not one per position (slower to compile: docs/speed.md)."""
     width = row_width(num_variables)
     owners: dict[int, list[int]] = {}  # column -> the positions of the actions whose number differs there
     for position in positions:
@@ -351,9 +352,8 @@ if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
 
 SELECTED_NUMBERS = 64
 """Up to this many numbers named by the selection (`selection_for`), the loop over envs selects each env's action
-effects with masks (`select`); with more, with gathers (masks outgrow the registers). At 16,384 envs on our AMD
-EPYC: v0 (11 numbers) 58 us a step with masks, v1 (33) 100 us with masks, 165 us with gathers. A mask per
-action and number (v1: about 200), as before the selection, made LLVM give up vectorising (5,000 us)."""
+effects with masks (`select`); with more, with gathers (masks outgrow the registers). The figures that set it:
+docs/speed.md, "What each mechanism of the loop earned"."""
 
 
 def masked(selection: Any) -> bool:
@@ -413,18 +413,18 @@ def action_effects(table: Any, width: Any, layout: Any, action: Any, zeros: Any,
 @njit(**JIT, **INLINE)
 def store_env(envs: Any, results: Any, rng: Any, i: Any, outcome: Any) -> None:
     """Env ``i``'s step ``outcome`` (the model's step's tuple) into place: its new state into ``envs[:, i]`` and
-    ``results[5][:, i]``, its draw counted in ``rng``, its results into ``results[k][i]``."""
+    ``results``' observations ``[:, i]``, its draw counted in ``rng``, its results into `StepResults`' ``[i]``."""
     state, reward, worked, risk, attack, new_score = outcome
     for v in range(len(state)):
         x = stored(v, state[v])
         envs[U64(v), i] = x
-        results[5][U64(v), i] = x
+        results[OBSERVATIONS][U64(v), i] = x
     rng[U64(COUNTER), i] = add32(rng[U64(COUNTER), i], U32(1))
-    results[0][i] = reward
-    results[1][i] = worked
-    results[2][i] = risk
-    results[3][i] = attack
-    results[4][i] = new_score
+    results[REWARD][i] = reward
+    results[PRODUCTIVITY][i] = worked
+    results[RISK][i] = risk
+    results[ATTACK][i] = attack
+    results[SCORE][i] = new_score
 
 
 @njit(**JIT, **INLINE)
@@ -443,19 +443,19 @@ def _step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, lay
 
 @njit(**JIT)
 def step_envs(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> bool:
-    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to
-    ``results[k][i]``, a tuple of arrays in `OUTPUTS` order, then a copy of the states and the actions as
-    `ACTION_DTYPE` ([`new_results`][heartpole.arrays.new_results]). First the actions (integers of any type) are
-    checked and converted (`convert_actions`): where one is not an action, nothing changes and the answer is False.
+    """Step every env ``i`` with ``actions[i]``: its state ``envs[:, i]`` in place, its results to ``results``, a
+    [`StepResults`][heartpole.kernel.StepResults] ([`new_results`][heartpole.arrays.new_results]). First the
+    actions (integers of any type) are checked and converted into ``results.actions`` (`convert_actions`): where
+    one is not an action, nothing changes and the answer is False.
 
     The results are arrays apart from the state so that fresh ones can go out as they are, without a copy.
     Each env draws its uniforms with its generator state ``rng[:, i]`` and then counts the draw.
     ``packed``, ``layout`` and ``selection`` are [`pack`][heartpole.kernel.pack]'s,
     [`layout`][heartpole.kernel.layout]'s and [`selection_for`][heartpole.kernel.selection_for]'s.
     """
-    if not convert_actions(actions, len(layout[2]), results[6]):
+    if not convert_actions(actions, len(layout[2]), results[ACTIONS]):
         return False
-    _step_envs(envs, results, results[6], rng, packed, layout, selection)
+    _step_envs(envs, results, results[ACTIONS], rng, packed, layout, selection)
     return True
 
 
@@ -464,9 +464,10 @@ def step_one(envs: Any, action: Any, rng: Any, packed: Any, layout: Any, selecti
     """[`step_envs`][heartpole.kernel.step_envs] over one env (the single env's path): ``envs`` is
     ``(num_variables, 1)``, ``rng`` ``(3, 1)``; returns its results as numbers, in `OUTPUTS` order. The same
     loop as the vector env's, so the single env is env 0 of a vector env bit for bit."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)  # copy: the state
-    _step_envs(envs, results, one(ACTION_DTYPE(action)), rng, packed, layout, selection)
-    return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
+    zero = F32(0.0)  # one env's results on this function's stack (`one`), its observations the state itself
+    out = StepResults(one(zero), one(zero), one(zero), one(False), one(zero), envs, one(ACTION_DTYPE(action)))
+    _step_envs(envs, out, out[ACTIONS], rng, packed, layout, selection)
+    return out[REWARD][0], out[PRODUCTIVITY][0], out[RISK][0], out[ATTACK][0], out[SCORE][0]
 
 
 @njit(**JIT)
@@ -483,11 +484,9 @@ def reset_envs(envs: Any, rng: Any, which: Any, packed: Any, layout: Any) -> Non
             rng[COUNTER, i] = add32(rng[COUNTER, i], U32(1))
 
 
-# They inline model's step and jit's tools: an edit of either recompiles them.
-cache_keyed_on(model, step_envs, step_one, reset_envs)
-cache_keyed_on(jit, step_envs, step_one, reset_envs)
-cache_keyed_on(random_numbers, step_envs, step_one, reset_envs)
-cache_keyed_on(lanes, step_envs, step_one, reset_envs)
+# They inline the model's step, jit's tools, the generator and the lanes: an edit of any recompiles them.
+for _source in (model, jit, random_numbers, lanes):
+    cache_keyed_on(_source, step_envs, step_one, reset_envs)
 # Plain Python would return NumPy scalars where compiled code returns Python ones.
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     _python_step_one = step_one

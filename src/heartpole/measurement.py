@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import check_integer, check_number
+from heartpole.parameters import check_integer, check_number
 
 
 @dataclass(frozen=True, init=False)

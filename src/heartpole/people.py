@@ -1,7 +1,7 @@
 """People differ: a population of people, each with their own numbers of the model, drawn per episode.
 
 A [`People`][heartpole.people.People] says how each of the person's fields of
-[`Params`][heartpole.model.Params] varies between people, in one of two ways:
+[`Params`][heartpole.parameters.Params] varies between people, in one of two ways:
 
 - **a distribution**: each field given is fixed (a value) or [`Uniform`][heartpole.people.Uniform] in a
   range (integers with both ends included for an integer field; for the ``(low, high)`` pair
@@ -38,12 +38,12 @@ from typing import Any, cast
 
 import numpy as np
 
-from heartpole.model import Params, check_integer, check_keywords, check_number, check_pair
+from heartpole.parameters import Params, check_integer, check_keywords, check_number, check_pair
 
 TASK_FIELDS = ("max_steps", "heart_attack_penalty")
-"""The fields of [`Params`][heartpole.model.Params] that belong to the task, not to a person."""
+"""The fields of [`Params`][heartpole.parameters.Params] that belong to the task, not to a person."""
 PERSON_FIELDS = tuple(f.name for f in dataclasses.fields(Params) if f.name not in TASK_FIELDS)
-"""The fields of [`Params`][heartpole.model.Params] a population may vary (every other field)."""
+"""The fields of [`Params`][heartpole.parameters.Params] a population may vary (every other field)."""
 
 Value = float | tuple[float, float]
 """A field's value: a number, or a ``(low, high)`` pair for ``wake_alertness``."""
@@ -130,12 +130,12 @@ class Person:
     Raises:
         TypeError: a keyword that is not a person's field (``max_steps``, ``heart_attack_penalty`` are the
             task's).
-        ValueError: an empty name, no field, or a value [`Params`][heartpole.model.Params] refuses.
+        ValueError: an empty name, no field, or a value [`Params`][heartpole.parameters.Params] refuses.
     """
 
     name: str
     traits: tuple[tuple[str, Value], ...]
-    """The fields given, in [`Params`][heartpole.model.Params]' order, as ``(field, value)`` pairs."""
+    """The fields given, in [`Params`][heartpole.parameters.Params]' order, as ``(field, value)`` pairs."""
 
     def __init__(self, name: str, **traits: Value) -> None:
         if not isinstance(name, str) or not name.strip():
@@ -154,7 +154,7 @@ class Person:
         return dict(self.traits)
 
     def params(self, base: Params | None = None) -> Params:
-        """``base`` (default: v0's [`Params`][heartpole.model.Params]) with this person's fields."""
+        """``base`` (default: v0's [`Params`][heartpole.parameters.Params]) with this person's fields."""
         return dataclasses.replace(base or Params(), **self.values())  # type: ignore[arg-type]
 
 
@@ -169,13 +169,13 @@ class People:
         TypeError: a field that is not a person's (see [`PERSON_FIELDS`][heartpole.people.PERSON_FIELDS]), or
             a cohort member that is not a [`Person`][heartpole.people.Person].
         ValueError: nothing given, a cohort and fields together, repeated names, cohort members that give
-            different fields, or a range with a value [`Params`][heartpole.model.Params] refuses (every
+            different fields, or a range with a value [`Params`][heartpole.parameters.Params] refuses (every
             corner of the ranges is checked by constructing ``Params``: its rules are intervals and
             ``low <= high``, so a valid box of corners holds only valid people).
     """
 
     fields: tuple[tuple[str, Value | Uniform], ...]
-    """Each field of a distribution, in [`Params`][heartpole.model.Params]' order: a fixed value or a
+    """Each field of a distribution, in [`Params`][heartpole.parameters.Params]' order: a fixed value or a
     [`Uniform`][heartpole.people.Uniform] (empty for a cohort)."""
     cohort: tuple[Person, ...]
     """The named people of a finite cohort (empty for a distribution)."""
@@ -331,7 +331,7 @@ class Sample:
         return self.values[:, index].astype(np.float32)
 
     def column(self, name: str, base: Params | None = None) -> np.ndarray:
-        """``(n,)`` float64 values of any column of [`Params`][heartpole.model.Params] (``decay_rate``,
+        """``(n,)`` float64 values of any column of [`Params`][heartpole.parameters.Params] (``decay_rate``,
         ``wake_alertness_low``, ``max_steps`` ...): the drawn ones, else ``base``'s (default v0's) for all."""
         if name in self.people.columns:
             return self.values[:, self.people.columns.index(name)]
@@ -341,7 +341,7 @@ class Sample:
         return np.full(len(self), known[name], dtype=np.float64)
 
     def params(self, index: int, base: Params | None = None) -> Params:
-        """Env ``index``'s person as [`Params`][heartpole.model.Params]: ``base`` (default v0's) with the drawn
+        """Env ``index``'s person as [`Params`][heartpole.parameters.Params]: ``base`` (default v0's) with the drawn
         fields (one env at a time: for reports and the solver, not for stepping)."""
         row = self.values[index]
         values: dict[str, Any] = {}
@@ -393,7 +393,7 @@ def _check_cohort(cohort: tuple[Person, ...]) -> None:
 
 
 def _check_corners(fields: Mapping[str, object]) -> None:
-    """Construct [`Params`][heartpole.model.Params] at every corner of the ranges (its rules are convex)."""
+    """Construct [`Params`][heartpole.parameters.Params] at every corner of the ranges (its rules are convex)."""
     options: list[list[tuple[str, object]]] = []
     for field, spec in fields.items():
         if isinstance(spec, Uniform):

@@ -9,10 +9,8 @@ no formula of its own) with those numbers read per env from two arguments:
 * ``cells``, ``(columns, num_envs)`` float32: row ``c`` holds every env's value of column ``c`` (numbers equal
   for every person share a column: HeartPole's two fading variables fade alike). Each varying number costs one
   contiguous load per env (LLVM vectorises them: the loop's arrays are declared not to overlap,
-  `heartpole.jit.no_alias`); the shared numbers are read once, as in the v0 loop. (Gathering each env's
-  numbers from a table of the people by person index, as before, added about twice as much time to the v0
-  loop at 16,384 envs; at 16,384 envs the loops are bound by memory traffic, and each column costs about
-  as much as one of the state's variables.)
+  `heartpole.jit.no_alias`); the shared numbers are read once, as in the v0 loop (what a column costs,
+  against gathering each env's numbers by person index: docs/speed.md).
 * ``overlay`` ([`overlay_for`][heartpole.person_kernel.overlay_for]): an empty array whose structured dtype says which
   numbers the cells replace: a field ``p{position}`` (the number's index in the raveled packed tables,
   [`pack`][heartpole.kernel.pack]) at byte offset ``4 * column``. numba compiles a loop per argument type, so the
@@ -38,7 +36,7 @@ from numba.extending import intrinsic, overload
 
 from heartpole import jit, kernel, model
 from heartpole.jit import INLINE, JIT, cache_keyed_on, no_alias, one, wide_vectors
-from heartpole.kernel import to_fixed_tuple, tuple_setitem
+from heartpole.kernel import ACTIONS, ATTACK, PRODUCTIVITY, REWARD, RISK, SCORE, to_fixed_tuple, tuple_setitem
 from heartpole.lanes import F32, U32, U64, add32, where
 
 struct_proxy: Any = cgutils.create_struct_proxy  # untyped in numba
@@ -209,9 +207,9 @@ def step_envs(
 ) -> bool:
     """[`step_envs`][heartpole.kernel.step_envs] with each env's own numbers: ``flat`` the packed tables
     raveled, ``cells`` and ``overlay`` as the module docstring says. No two of the arrays may overlap."""
-    if not kernel.convert_actions(actions, len(layout[2]), results[6]):
+    if not kernel.convert_actions(actions, len(layout[2]), results[ACTIONS]):
         return False
-    _loop(envs, results, results[6], rng, flat, layout, cells, overlay, selection)
+    _loop(envs, results, results[ACTIONS], rng, flat, layout, cells, overlay, selection)
     return True
 
 
@@ -220,9 +218,12 @@ def _step_one(
     envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any
 ) -> Any:
     """`step_one`'s compiled part: the loop over one env."""
-    results = (one(F32(0.0)), one(F32(0.0)), one(F32(0.0)), one(False), one(F32(0.0)), envs)  # copy: the state
-    _loop(envs, results, one(kernel.ACTION_DTYPE(action)), rng, flat, layout, cells, overlay, selection)
-    return results[0][0], results[1][0], results[2][0], results[3][0], results[4][0]
+    zero = F32(0.0)  # one env's results on this function's stack (`one`), its observations the state itself
+    out = kernel.StepResults(
+        one(zero), one(zero), one(zero), one(False), one(zero), envs, one(kernel.ACTION_DTYPE(action))
+    )
+    _loop(envs, out, out[ACTIONS], rng, flat, layout, cells, overlay, selection)
+    return out[REWARD][0], out[PRODUCTIVITY][0], out[RISK][0], out[ATTACK][0], out[SCORE][0]
 
 
 def step_one(envs: Any, action: Any, rng: Any, flat: Any, layout: Any, cells: Any, overlay: Any, selection: Any) -> Any:

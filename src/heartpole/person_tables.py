@@ -4,7 +4,7 @@
 ([`People`][heartpole.people.People]) to a variant ([`Dynamics`][heartpole.dynamics.Dynamics]): which numbers
 of the packed tables differ between people (the *slots*), and, for people drawn
 ([`Sample`][heartpole.people.Sample]), each env's values of them. The numbers come from
-[`step_tables`][heartpole.dynamics.step_tables], the one place that turns [`Params`][heartpole.model.Params]
+[`step_tables`][heartpole.dynamics.step_tables], the one place that turns [`Params`][heartpole.parameters.Params]
 into tables: a cohort's members one by one (so an env of the cohort's person is an env made with that person's
 ``Params`` bit for bit), a distribution's people all at once (NumPy arrays in place of the parameters).
 """
@@ -18,7 +18,7 @@ import numpy as np
 
 from heartpole import kernel, person_kernel
 from heartpole.dynamics import Dynamics, step_tables
-from heartpole.model import Params
+from heartpole.parameters import Params
 from heartpole.people import People, Sample, field_columns
 
 

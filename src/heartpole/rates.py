@@ -14,7 +14,8 @@ import numpy as np
 
 from heartpole.actions import TAKE_NAP
 from heartpole.dynamics import Dynamics
-from heartpole.model import Params, alertness_decay, productivity
+from heartpole.model import alertness_decay, productivity
+from heartpole.parameters import Params
 
 RATE_WITH_NAPS = 0.69
 """The long-run rate of the expert's nap rule in a variant with v1's ``take_nap`` (see

@@ -34,7 +34,7 @@ from gymnasium.envs.registration import EnvSpec, parse_env_id
 from heartpole.actions import V0_ACTIONS, V1_ACTIONS, V1_VARIABLES, Action, as_action
 from heartpole.dynamics import Dynamics
 from heartpole.env import build_dynamics, episode_length
-from heartpole.model import V0_VARIABLES, Params, Variable, check_keywords
+from heartpole.parameters import V0_VARIABLES, Params, Variable, check_keywords
 from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
 from heartpole.solved import V0_BAR, V1_BAR, SolvedBar
 from heartpole.solved import solved_bar as bar_of_params
@@ -75,7 +75,7 @@ _MAKE_TIME = {
     "wrappers": "gymnasium.make_vec",
 }
 PARAMETERS: tuple[str, ...] = tuple(f.name for f in fields(Params))
-"""The parameters a variant may set: the fields of [`heartpole.Params`][heartpole.model.Params]."""
+"""The parameters a variant may set: the fields of [`heartpole.Params`][heartpole.parameters.Params]."""
 
 VARIABLE_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Variable))
 
@@ -187,11 +187,11 @@ def register_variant(
             to keep their indices.
         variables: the state variables in observation order: v0's six exactly
             (``heartpole.V0_VARIABLES``), then any that the actions need, as
-            [`heartpole.Variable`][heartpole.model.Variable] objects or mappings of their fields. Each starts at 0, so 0
-            must lie within its bounds. Default: v0's six. ``heartpole.V1_VARIABLES`` adds v1's ``thc``.
+            [`heartpole.Variable`][heartpole.parameters.Variable] objects or mappings of their fields. Each starts
+            at 0, so 0 must lie within its bounds. Default: v0's six. ``heartpole.V1_VARIABLES`` adds v1's ``thc``.
         replace: redefine a variant this function registered before (handy when re-running a notebook).
             The built-in ``HeartPole-v0`` and ``HeartPole-v1`` and other packages' ids are never replaced.
-        **params: [`heartpole.Params`][heartpole.model.Params] fields: ``heart_attack_proclivity``, ``max_steps``,
+        **params: [`heartpole.Params`][heartpole.parameters.Params] fields: ``heart_attack_proclivity``, ``max_steps``,
             ``decay_rate``, ``sleep_half_hours``, ``heart_attack_penalty``, ``wake_alertness``. They become
             the variant's defaults, which ``gymnasium.make(id, ...)`` can still override.
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 from typing import Any, TypeAlias
 
-from heartpole.model import Params, heart_attack_risk
+from heartpole.model import heart_attack_risk
+from heartpole.parameters import Params
 
 Array: TypeAlias = Any
 """A float, a NumPy array or a ``jax.numpy`` array: anything with arithmetic operators."""

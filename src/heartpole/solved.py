@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from heartpole.model import Params
+from heartpole.parameters import Params
 from heartpole.rewards import least_heart_attacks
 
 SOLVED_REGRET = 0.01

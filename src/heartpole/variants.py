@@ -109,7 +109,7 @@ class HeartPoleV1(HeartPole):
 
     ## Arguments
     ``gymnasium.make("HeartPole-v1", heart_attack_proclivity=0.5, max_steps=1000, render_mode=None)`` and
-    the other [`heartpole.Params`][heartpole.model.Params] fields (``decay_rate``, ``sleep_half_hours``, ...). The
+    the other [`heartpole.Params`][heartpole.parameters.Params] fields (``decay_rate``, ``sleep_half_hours``, ...). The
     action set and state are fixed; for other ones, define a variant with
     [`heartpole.register_variant`][heartpole.registry.register_variant].
 

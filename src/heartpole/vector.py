@@ -27,8 +27,8 @@ from heartpole.env import (
     observation_space,
 )
 from heartpole.measurement import Measurement
-from heartpole.model import Variable, check_integer
 from heartpole.observation import Observer, Seen, observe
+from heartpole.parameters import Variable, check_integer
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
 
@@ -57,8 +57,20 @@ class HeartPoleVectorEnv(VectorEnv):
     ``HeartPole().reset(seed=s)`` bit for bit. Keyword arguments are the single env's.
 
     Spaces are batched: observations ``(num_envs, 6)`` float32, actions ``MultiDiscrete([4] * num_envs)``.
-    Observations are fresh copies in column-major (Fortran) order, as ``CartPoleVectorEnv``'s are: each
-    variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
+    Observations are copies of the state (never the state itself) in column-major (Fortran) order, as
+    ``CartPoleVectorEnv``'s are: each variable is contiguous; ``np.ascontiguousarray(obs)`` gives rows.
+
+    **The arrays a step returns** are the caller's while it holds any of them: the env never writes to one of a
+    step's arrays while anything outside it holds one of them, by reference, by a view (``obs[1:]``, ``obs.T``),
+    a memoryview or a tensor sharing its memory (holding one holds them all). Once nothing does, a later step may
+    take them back and write its own results into them (`heartpole.arrays.Recycler`): ``obs`` (where it is the
+    loop's copy of the state: no env restarted in the step, no traits or measurement observed; else it is new),
+    ``reward`` and ``info``'s ``action_taken``, ``heart_attack``, ``heart_attack_risk``, ``productivity`` and
+    ``score``. A weak reference does not hold them: through one alone, such an array may show a later step's
+    values. Only CPython with its GIL tells by reference counts (`heartpole.arrays.COUNTED`); elsewhere (PyPy, a
+    free-threaded build) every step returns new arrays. ``terminated``, ``truncated``, ``info``'s ``_key`` masks
+    and ``final_obs``/``final_info`` are new at every step; ``info["person"]`` and ``info["traits"]`` are
+    read-only arrays that the env replaces (never writes) when it draws new people.
 
     ``info`` holds the single env's keys ([`INFO_KEYS`][heartpole.vector.INFO_KEYS]: ``action_taken``, the index of the
     action taken, ``action_names`` naming it; ``heart_attack``, ``heart_attack_risk``, ``productivity``, ``score``) as
@@ -252,7 +264,7 @@ class HeartPoleVectorEnv(VectorEnv):
             self._refuse(array, actions)
         n = self.num_envs
         results = self._results()  # they go out as they are: new, or the last step's if nobody holds them
-        reward, worked, risk, attack, new_score, observed, action = results
+        reward, action, attack = results.reward, results.actions, results.heart_attack
         stepped = restart is None or not restart.all()
         if stepped:  # the loop checks the actions and converts them into `action` before it changes anything
             loop = self._loop or self._plan_loop(results, array)
@@ -262,7 +274,8 @@ class HeartPoleVectorEnv(VectorEnv):
             self._refuse(array, actions)
         present = self._everyone.copy()  # one mask for all keys: every key is present for every env
         info: dict[str, Any] = {}
-        for key, mask, value in zip(INFO_KEYS, INFO_MASKS, (action, attack, risk, worked, new_score)):
+        values = (action, attack, results.heart_attack_risk, results.productivity, results.score)
+        for key, mask, value in zip(INFO_KEYS, INFO_MASKS, values):
             info[key], info[mask] = value, present
         self._clock += 1
         if restart is not None:  # NEXT_STEP autoreset: these envs start afresh instead of stepping
@@ -280,7 +293,7 @@ class HeartPoleVectorEnv(VectorEnv):
         self._person_info(info, present)
         # the loop's copy of the states is the observation unless some env restarted or the observer adds to it
         copied = stepped and restart is None and self._observer.plain
-        obs, self._ended = observed.T if copied else self._observations(), None
+        obs, self._ended = results.observations.T if copied else self._observations(), None
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
@@ -316,7 +329,7 @@ class HeartPoleVectorEnv(VectorEnv):
         return tuple(frames)
 
     # ----------------------------------------------------------------------------------------------------
-    def _plan_loop(self, results: tuple[np.ndarray, ...], action: np.ndarray) -> Any:
+    def _plan_loop(self, results: kernel.StepResults, action: np.ndarray) -> Any:
         """The compiled loop over envs (v0's or the people's) for the types of this env's arrays, called without
         numba's dispatch (`heartpole.env.compiled_for`), kept for every later step: the arguments after the
         actions and the generator states are in `_loop_arguments`."""

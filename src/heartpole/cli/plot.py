@@ -27,7 +27,7 @@ from heartpole.cli.common import (
     seed_int,
     tell_normalization,
 )
-from heartpole.model import Params
+from heartpole.parameters import Params
 from heartpole.progress import Progress, progress
 
 if TYPE_CHECKING:

@@ -38,7 +38,8 @@ from heartpole.evaluation import (
 from heartpole.jax.env import EnvParams, EnvState, HeartPoleJax
 from heartpole.jax.policies import Act, builtin_act
 from heartpole.jax.traced import MODEL, RNG
-from heartpole.model import TIME_ELAPSED, WORK_DONE, check_integer
+from heartpole.model import TIME_ELAPSED, WORK_DONE
+from heartpole.parameters import check_integer
 from heartpole.policies import policy_name
 from heartpole.rewards import expected_risk
 from heartpole.rng import COUNTER, KEY_HIGH, KEY_LOW

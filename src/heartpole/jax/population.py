@@ -23,7 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from heartpole.dynamics import Dynamics, step_tables
-from heartpole.model import ActionEffects, Params, StepTables, table_fields
+from heartpole.model import ActionEffects, StepTables, table_fields
+from heartpole.parameters import Params
 from heartpole.people import People, Uniform, field_columns
 
 Tables = tuple[tuple[ActionEffects, ...], StepTables]
@@ -164,7 +165,7 @@ class Population:
 
 
 def column_field(column: str) -> str:
-    """The field of [`Params`][heartpole.model.Params] a column of values belongs to."""
+    """The field of [`Params`][heartpole.parameters.Params] a column of values belongs to."""
     for suffix in ("_low", "_high"):
         field = column.removesuffix(suffix)
         if field != column and field_columns(field) != (field,):

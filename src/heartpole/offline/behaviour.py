@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import check_number
+from heartpole.parameters import check_number
 from heartpole.policies import Policy, RandomPolicy, policy_name
 from heartpole.rollout import check_actions as check_actions
 

@@ -45,7 +45,6 @@ if TYPE_CHECKING:
 from heartpole import files, paths
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.measurement import Measurement
-from heartpole.model import check_integer
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.population import (
     measurement_kwargs,
@@ -57,6 +56,7 @@ from heartpole.offline.population import (
 )
 from heartpole.offline.recorded import check_dataset_env, minari_env_options, recorded_metadata, recorded_spec
 from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
+from heartpole.parameters import check_integer
 from heartpole.people import People
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.registry import env_dynamics, quiet_version_warnings

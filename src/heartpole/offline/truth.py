@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from heartpole.evaluation import chunk_seed, policy_rng
-from heartpole.model import check_integer
+from heartpole.parameters import check_integer
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.reporting import plus_minus
 from heartpole.rewards import expected_risk

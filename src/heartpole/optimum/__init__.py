@@ -2,7 +2,7 @@
 
 What is solved. An episode's return telescopes to ``final score - penalty x heart attacks``, with the score
 ``work_done / time_elapsed`` (fact 0's bookkeeping). The solver finds the policy that maximises the
-expected return of HeartPole-v0, with any of its [`Params`][heartpole.model.Params] changed, in two steps:
+expected return of HeartPole-v0, with any of its [`Params`][heartpole.parameters.Params] changed, in two steps:
 
 1. **Drinks never pay** (while ``heart_attack_proclivity * heart_attack_penalty > 0`` and the check below
    passes). A step's heart-attack risk ``r(H) = proclivity * sigmoid(H - 6)`` is convex for ``H <= 6`` and

@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import Params, alertness_decay, productivity
+from heartpole.model import alertness_decay, productivity
+from heartpole.parameters import Params
 
 SOLVER_VERSION = 4
 """Bumped whenever a saved solution would mean something else; caches of other versions are solved again
@@ -26,7 +27,7 @@ class NotCoveredError(ValueError):
 SOLVED_PARAMS = frozenset(
     {"heart_attack_proclivity", "max_steps", "decay_rate", "sleep_half_hours", "heart_attack_penalty", "wake_alertness"}
 )
-"""The fields of [`Params`][heartpole.model.Params] the solvers model. A field added to ``Params`` later reaches
+"""The fields of [`Params`][heartpole.parameters.Params] the solvers model. A field added to ``Params`` later reaches
 every env backend by itself (model.py and dynamics.py), but not the solvers: its default (the tutorial's
 dynamics, which the solvers already are) is covered, any other value refused (`unmodelled`)."""
 

@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from heartpole.model import Params, alertness_decay, check_integer, productivity
+from heartpole.model import alertness_decay, productivity
+from heartpole.parameters import Params, check_integer
 
 from .common import NotCoveredError
 

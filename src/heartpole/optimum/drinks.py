@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from heartpole.actions import V0_ACTIONS
-from heartpole.model import V0_VARIABLES, Params, alertness_decay, ballmer, heart_attack_risk, productivity
+from heartpole.model import alertness_decay, ballmer, heart_attack_risk, productivity
+from heartpole.parameters import V0_VARIABLES, Params
 
 from .common import SOLVED_PARAMS, NotCoveredError, Settling, max_awake, peak_productivity, unmodelled
 from .sleep import solve_params

@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from heartpole.model import Params, productivity
+from heartpole.model import productivity
+from heartpole.parameters import Params
 
 from .sleep import _DayModel
 

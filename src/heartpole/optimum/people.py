@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import check_integer
+from heartpole.parameters import check_integer
 from heartpole.people import People
 from heartpole.stats import confidence_interval
 

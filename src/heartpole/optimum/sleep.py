@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from heartpole.model import Params, alertness_decay, productivity
+from heartpole.model import alertness_decay, productivity
+from heartpole.parameters import Params
 from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, NotCoveredError, Settling, max_awake

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heartpole import files
-from heartpole.model import Params, check_integer
+from heartpole.parameters import Params, check_integer
 from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
@@ -34,7 +34,7 @@ class OptimumSolution:
 
     Attributes:
         env_id, env_kwargs: the env solved.
-        params: its [`Params`][heartpole.model.Params].
+        params: its [`Params`][heartpole.parameters.Params].
         grid: midpoint-grid points of the waking alertness.
         rate: Dinkelbach's optimal ``E[work] / E[time]`` on the grid.
         expected_score: the exact ``E[work / time]`` of the grid policy.

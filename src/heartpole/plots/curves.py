@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from heartpole import model
-from heartpole.model import Params
+from heartpole.parameters import Params
 from heartpole.plots.canvas import ATTACK_COLOR, CURVE_COLOR, new_figure
 from heartpole.render import landmarks
 

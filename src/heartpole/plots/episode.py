@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, cast
 import gymnasium as gym
 import numpy as np
 
-from heartpole import model
+from heartpole import model, parameters
 from heartpole.plots.canvas import ACTION_COLORS, ATTACK_COLOR, CURVE_COLOR, EXTRA_COLORS, SLEEP_SHADE, new_figure
 from heartpole.policies import Policy, quiet_version_warnings
 from heartpole.render import EPISODE_START_MINUTES, landmarks
@@ -110,7 +110,7 @@ def _episode_panels(trace: EpisodeTrace) -> list[tuple[str, str, np.ndarray]]:
         ("hypertension", "blood pressure\n(hypertension)", trace.column("hypertension")),
         ("intoxication", "intoxication\n(blood alcohol)", trace.column("intoxication")),
     ]
-    v0 = {v.name for v in model.V0_VARIABLES}
+    v0 = {v.name for v in parameters.V0_VARIABLES}
     panels += [(name, name.replace("_", " "), trace.column(name)) for name in trace.names if name not in v0]
     score = trace.score.copy()
     score[0] = np.nan  # no score before any time has passed

@@ -21,7 +21,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
-from heartpole.model import check_integer
+from heartpole.parameters import check_integer
 from heartpole.records import normalize_env
 from heartpole.training.reward import ENV_REWARD, TrainingReward
 

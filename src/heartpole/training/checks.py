@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from heartpole.model import is_number
+from heartpole.parameters import is_number
 
 
 @dataclass(frozen=True)

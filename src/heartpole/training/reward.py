@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
-from heartpole.model import check_number, is_number
+from heartpole.parameters import check_number, is_number
 
 # ------------------------------------------------------------------------------------------------------
 # the training reward
