@@ -12,8 +12,8 @@ import argparse
 import json
 import time
 
-from heartpole.model import Params
 from heartpole.optimum.whole import history_worth, solve_history
+from heartpole.parameters import Params
 
 
 def main() -> None:

@@ -9,9 +9,10 @@ import pytest
 
 from heartpole import model
 from heartpole.dynamics import Dynamics, step_tables
-from heartpole.model import TIME_ELAPSED, WORK_DONE, Params
+from heartpole.model import TIME_ELAPSED, WORK_DONE
 from heartpole.optimum.sleep import solve_params
 from heartpole.optimum.whole import solve_history
+from heartpole.parameters import Params
 from tests.test_optimum import _expectimax
 
 

@@ -37,7 +37,8 @@ import numpy as np
 from numba import njit
 
 from heartpole.kernel import CACHE
-from heartpole.model import Params, productivity
+from heartpole.model import productivity
+from heartpole.parameters import Params
 
 from .common import max_awake
 from .sleep import _DayModel, solve_params
@@ -45,7 +46,7 @@ from .sleep import _DayModel, solve_params
 
 @dataclass(frozen=True)
 class HistoryOptimum:
-    """The optimum over all no-drink policies of one [`Params`][heartpole.model.Params], bounded on a grid.
+    """The optimum over all no-drink policies of one [`Params`][heartpole.parameters.Params], bounded on a grid.
 
     Attributes:
         params: what was solved.
