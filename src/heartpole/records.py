@@ -118,11 +118,14 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
 
 
 def run_description(config: Any) -> dict[str, Any]:
-    """What every backend's ``heartpole.json`` says first: the run's algorithm, env, seed, steps, preset,
-    policy class and whole configuration."""
+    """What every backend's ``heartpole.json`` says first: the run's algorithm, env (id and keyword arguments:
+    what ``heartpole evaluate`` and the other commands play the model on, see
+    [`heartpole.policies.trained_env`][heartpole.policies.trained_env]), seed, steps, preset, policy class and
+    whole configuration."""
     return {
         "algo": config.algo,
         "env_id": config.env_id,
+        "env_kwargs": dict(config.env_kwargs),
         "seed": config.seed,
         "timesteps": config.timesteps,
         "preset": config.preset,

@@ -134,6 +134,7 @@ def record_dataset(
     people: People | str | None = None,
     observe_traits: bool = False,
     measurement: Measurement | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
 ) -> MinariDataset:
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
@@ -157,6 +158,7 @@ def record_dataset(
         observe_traits: append each person's traits to the observation (needs ``people``).
         measurement: what the behaviour observes of the state
             ([`Measurement`][heartpole.measurement.Measurement]; recorded in the metadata).
+        env_kwargs: the env's other keyword arguments (``max_steps``, ``heart_attack_proclivity``, ...).
 
     The dataset's env (``env_spec`` and ``eval_env``, so ``recover_environment()``) is ``env_id`` made with
     these people, traits and measurement, and its spaces are the data's
@@ -171,7 +173,7 @@ def record_dataset(
     """
     import minari
 
-    env_kwargs = {**people_kwargs(people, observe_traits), **measurement_kwargs(measurement)}
+    env_kwargs = {**(env_kwargs or {}), **people_kwargs(people, observe_traits), **measurement_kwargs(measurement)}
     target_id, create = _plan(policy, epsilon, episodes, env_id, seed, dataset_id, force, description, num_envs,
                               progress, env_kwargs,
                               people_suffix(people, observe_traits) + measurement_suffix(measurement))  # fmt: skip
@@ -202,7 +204,7 @@ def _plan(
     epsilon = check_epsilon(epsilon)
     env_kwargs = env_kwargs or {}
     spec = recorded_spec(env_id, env_kwargs)  # checks the env and its kwargs before anything runs
-    base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
+    base, behaviour = behaviour_policy(policy, epsilon, env_id, seed, env_kwargs)
     components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
     target_id = default_dataset_id(name + suffix, env_id) if dataset_id is None else dataset_id
@@ -330,11 +332,11 @@ def to_buffers(trajectories: Trajectories) -> list[EpisodeBuffer]:
     ]
 
 
-def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
+def _resolve(policy: object, env_id: str, seed: int, index: int, env_kwargs: Mapping[str, Any]) -> Policy:
     """``policy`` (any of the components the caller was given) as a [`Policy`][heartpole.policies.Policy], or a
     ``ValueError``."""
     if isinstance(policy, str):
-        loaded = load_policy(policy, env_id, rng=policy_rng(seed, index))
+        loaded = load_policy(policy, env_id, env_kwargs=env_kwargs, rng=policy_rng(seed, index))
         if getattr(loaded, "needs_decisions_left", False) or getattr(loaded, "needs_person", False):
             raise ValueError(f"policy {policy!r} acts on the decisions left or the person, not recorded in a dataset")
         return loaded
@@ -344,14 +346,15 @@ def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
 
 
 def behaviour_policy(
-    policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0
-) -> tuple[Policy, EpsilonGreedy]:
+    policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> tuple[Policy, EpsilonGreedy]:  # fmt: skip
     """``(base, behaviour)``: the policy (or the per-step mixture of several) and its epsilon-greedy
-    behaviour, with the random streams [`record_dataset`][heartpole.offline.datasets.record_dataset] uses for
-    ``seed``."""
-    num_actions = len(env_dynamics(env_id).actions)
+    behaviour in ``env_id`` made with ``env_kwargs``, with the random streams
+    [`record_dataset`][heartpole.offline.datasets.record_dataset] uses for ``seed``."""
+    num_actions = len(env_dynamics(env_id, env_kwargs).actions)
     components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
-    bases = [_resolve(p, env_id, seed, n) for n, p in enumerate(components)]
+    bases = [_resolve(p, env_id, seed, n, env_kwargs or {}) for n, p in enumerate(components)]
     base: Policy = bases[0] if len(bases) == 1 else Mixture(bases, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 1))
     return base, EpsilonGreedy(base, epsilon, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 0))
 
