@@ -23,16 +23,11 @@ the metadata: see [`heartpole.offline.population`][heartpole.offline.population]
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
 import re
-import shutil
 import time
-import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -42,10 +37,11 @@ if TYPE_CHECKING:
     from minari import MinariDataset
     from minari.data_collector import EpisodeBuffer
 
-from heartpole import files, paths
+from heartpole import paths
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.measurement import Measurement
 from heartpole.model import check_integer
+from heartpole.offline import folder
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.population import (
     measurement_kwargs,
@@ -178,7 +174,7 @@ def record_dataset(
                               progress, env_kwargs,
                               people_suffix(people, observe_traits) + measurement_suffix(measurement))  # fmt: skip
     with quiet_version_warnings():
-        _write_atomically({target_id: create}, force)
+        folder.write_atomically({target_id: create}, force)
         return minari.load_dataset(target_id)
 
 
@@ -245,10 +241,16 @@ def _plan(
         "requirements": [f"heartpole>={_version()}"],
     }
 
+    shape = (int(extra["max_steps"]), len(extra["observation_names"]) + 8, len(extra["action_names"]))
+    where = _root()  # the scratch folder Minari writes into while recording is in it, on the same file system
+    folder.check_room(where / target_id, folder.dataset_bytes(episodes, *shape), f"dataset {target_id!r}")
+
     def create() -> None:
         started = time.perf_counter()
         dataset = None
         for part in iter_collect(behaviour, episodes, env_id, seeds, progress, env_kwargs):
+            room = folder.dataset_bytes(chunk, *shape)  # checked before each chunk: HDF5 fails badly on a full disk
+            folder.check_room(where, room, f"dataset {target_id!r}")
             if dataset is None:
                 dataset = minari.create_dataset_from_buffers(target_id, to_buffers(part), **options)
             else:
@@ -286,7 +288,7 @@ def record_standard(
         for spec, target in zip(specs, ids)
     )  # fmt: skip
     with quiet_version_warnings():
-        _write_atomically(plans, force)
+        folder.write_atomically(plans, force)
     return ids
 
 
@@ -369,8 +371,7 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
 
 def _root() -> Path:
     """Minari's datasets folder, as Minari itself finds it."""
-    configured = os.environ.get("MINARI_DATASETS_PATH")
-    return Path(configured) if configured is not None else Path.home() / ".minari" / "datasets"
+    return folder.root()
 
 
 def local_root() -> Path:
@@ -380,52 +381,6 @@ def local_root() -> Path:
 
 def _exists(target_id: str) -> bool:
     return (_root() / target_id).exists()
-
-
-def _write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:
-    """Run each dataset's ``create`` with Minari pointed at a hidden scratch folder in its datasets folder,
-    then move the datasets into place together, signals deferred ([`heartpole.files`][heartpole.files]): an error or an
-    interruption leaves Minari's folder as it was; once they are all in place, a command ends as a success."""
-    root = _root()
-    paths.expect_output(*(root / target_id for target_id in creates))
-    with files.scratch_folder(root, "heartpole-datasets") as scratch:
-        with _minari_root(scratch):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)  # Minari's notices about optional metadata
-                for create in creates.values():
-                    create()
-        with files.signals_deferred():
-            existing = [target_id for target_id in creates if (root / target_id).exists()]
-            if existing and not force:
-                raise FileExistsError(f"dataset {existing[0]!r} already exists in {root}; pass force=True (--force)")
-            for target_id in creates:
-                (root / target_id).parent.mkdir(parents=True, exist_ok=True)
-                _copy_namespace_metadata(scratch, root, target_id)
-                files.replace_folder(scratch / target_id, root / target_id)
-
-
-def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> None:
-    """Give the real namespaces (``heartpole``, ``heartpole/v0``) the metadata files Minari made for them."""
-    parts = target_id.split("/")[:-1]
-    for depth in range(1, len(parts) + 1):
-        namespace = Path(*parts[:depth])
-        for source in (temporary / namespace).glob("*.json"):
-            destination = root / namespace / source.name
-            if not destination.exists():
-                files.atomic_write(destination, partial(shutil.copyfile, source))
-
-
-@contextlib.contextmanager
-def _minari_root(path: Path) -> Iterator[None]:
-    previous = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(path)
-    try:
-        yield
-    finally:
-        if previous is None:
-            del os.environ["MINARI_DATASETS_PATH"]
-        else:
-            os.environ["MINARI_DATASETS_PATH"] = previous
 
 
 # ------------------------------------------------------------------------------------------------------
