@@ -168,6 +168,17 @@ def whole_number(name: str, text: str | None, minimum: int) -> int | None:
     return value
 
 
+def training_seed(name: str, seed: int) -> int:
+    """``seed`` if training can use it (NumPy's and Stable-Baselines3's seeding takes 0 to 2**32 - 1), else a
+    one-line [`CommandError`][heartpole.cli.common.CommandError] naming ``name`` and the accepted range."""
+    from heartpole.training.presets import MAX_TRAINING_SEED
+
+    if seed > MAX_TRAINING_SEED:
+        raise CommandError(f"{name}: a training seed is a whole number from 0 to {MAX_TRAINING_SEED:,} (2**32 - 1), "
+                           f"got {seed:,}")  # fmt: skip
+    return seed
+
+
 def parse_seeds(text: str, backend: str = "sb3") -> list[int]:
     """Seeds from ``"0-4"``, ``"0,3,7"`` or a mix (``"0-2,9"``): distinct whole numbers >= 0, in order given.
 
@@ -186,6 +197,7 @@ def parse_seeds(text: str, backend: str = "sb3") -> list[int]:
             raise CommandError(f"--seeds takes a list like 0-4 or 0,3,7, got {text!r}") from None
         if first < 0 or last < first:
             raise CommandError(f"--seeds takes ranges low-high with 0 <= low <= high, got {part!r}")
+        training_seed("--seeds", last)
         if last - first + len(seeds) >= MAX_SEEDS[backend]:
             raise CommandError(f"--seeds: at most {MAX_SEEDS[backend]:,} seeds with --backend {backend}, got {text!r}")
         seeds.extend(range(first, last + 1))
@@ -213,7 +225,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
         overrides["timesteps"] = timesteps
     if n_envs is not None:
         overrides["n_envs"] = n_envs
-    overrides["seed"] = whole_number("--seed", args.seed, 0)
+    overrides["seed"] = training_seed("--seed", whole_number("--seed", args.seed, 0))
     people = _people_kwargs(args)
     if people and not is_file:
         overrides["env_kwargs"] = people
