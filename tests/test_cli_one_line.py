@@ -3,10 +3,16 @@ before any work, with nothing written."""
 
 from __future__ import annotations
 
+import os
+import resource
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
+import heartpole
 from heartpole.cli import main
 
 pytest.importorskip("stable_baselines3")
@@ -36,3 +42,23 @@ def test_the_largest_training_seed_is_taken() -> None:
     assert TrainConfig(seed=2**32 - 1).seed == 2**32 - 1
     with pytest.raises(ValueError, match="seed must be at most 4294967295"):
         TrainConfig(seed=2**32)
+
+
+def _small_files(limit: int) -> None:
+    """In the child: files of at most ``limit`` bytes; a write past it fails (EFBIG) instead of killing."""
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+
+def test_a_long_mp4_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
+    pytest.importorskip("imageio_ffmpeg")
+    target = tmp_path / "out" / "x.mp4"
+    result = subprocess.run(
+        [sys.executable, "-m", "heartpole", "record", "--policy", "expert", "--out", str(target)],
+        env={**os.environ, "PYTHONPATH": str(Path(heartpole.__file__).parents[1])},
+        capture_output=True, text=True, timeout=300, preexec_fn=lambda: _small_files(200_000),
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr[-2000:]
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr[-2000:]
+    assert f"{target}: ffmpeg did not write a whole video (ffmpeg stopped after" in result.stderr
+    assert not (tmp_path / "out").exists()  # no temporary file, and the folder it made is gone
