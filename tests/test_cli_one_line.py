@@ -62,3 +62,17 @@ def test_a_long_mp4_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr[-2000:]
     assert f"{target}: ffmpeg did not write a whole video (ffmpeg stopped after" in result.stderr
     assert not (tmp_path / "out").exists()  # no temporary file, and the folder it made is gone
+
+
+@pytest.mark.parametrize("mode", ["human", "ansi", "bogus"])
+def test_a_preset_render_mode_training_cannot_use_is_refused_up_front(capsys, tmp_path: Path, mode: str) -> None:
+    from dataclasses import replace
+
+    from heartpole.training import preset_config
+    from heartpole.training.presets import save_preset
+
+    preset = tmp_path / "p.json"
+    save_preset(replace(preset_config(), env_kwargs={"render_mode": mode}, timesteps=64, n_envs=2), preset)
+    err = _one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
+    assert f"env_kwargs {{'render_mode': '{mode}'}}" in err and "render_mode must be None or one of" in err
+    assert not (tmp_path / "o").exists()

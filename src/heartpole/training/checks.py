@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -194,7 +195,9 @@ def check_config(config: Any) -> None:
         ValueError: naming the key (``hyperparameters.learning_rate``, ``env_kwargs``, ...), the value and what
             is accepted.
     """
-    from heartpole.registry import env_dynamics
+    import gymnasium as gym
+
+    from heartpole.registry import env_dynamics, one_line, quiet_version_warnings
 
     check_net_arch(config.net_arch)
     check_hyperparameters(config.algo, config.hyperparameters)
@@ -207,11 +210,19 @@ def check_config(config: Any) -> None:
         raise ValueError(f"reward_stats_window must be a number >= 1 or null, got {window!r}")
     if not isinstance(config.env_kwargs, Mapping):
         raise ValueError(f"env_kwargs must be an object of keyword: value, got {config.env_kwargs!r}")
-    try:
-        env_dynamics(config.env_id, config.env_kwargs)
-    except (TypeError, ValueError) as error:
-        where = f"env_kwargs {dict(config.env_kwargs)!r}" if config.env_kwargs else f"env_id {config.env_id!r}"
-        raise ValueError(f"{where}: {error}") from None
+    where = f"env_kwargs {dict(config.env_kwargs)!r}" if config.env_kwargs else f"env_id {config.env_id!r}"
+    with warnings.catch_warnings():  # Gymnasium's warning about a render_mode the env refuses anyway, in words
+        warnings.filterwarnings("ignore", message=".*initialised with render_mode", category=UserWarning)
+        try:
+            env_dynamics(config.env_id, config.env_kwargs)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{where}: {error}") from None
+        try:  # and the vector env that training steps, which refuses more (a render_mode other than rgb_array)
+            with quiet_version_warnings():
+                kwargs = dict(config.env_kwargs)
+                gym.make_vec(config.env_id, 1, vectorization_mode="vector_entry_point", **kwargs).close()
+        except (TypeError, ValueError, gym.error.Error) as error:
+            raise ValueError(f"{where}: the vector env training steps refuses them: {one_line(error)}") from None
 
 
 __all__ = [
