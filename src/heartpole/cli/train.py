@@ -349,7 +349,23 @@ def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int
     missing = missing_ray_modules()
     if missing:
         raise CommandError(f"--ray needs {', '.join(missing)}, which this Python cannot import: {RAY_EXTRA}")
-    return whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1
+    return check_cpus_per_trial(whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1, args.address)
+
+
+def check_cpus_per_trial(cpus: int, address: str | None) -> int:
+    """``cpus`` if Ray started on this machine (no ``--address``) can give a trial that many: more than the
+    machine's CPUs and every trial would wait for them forever. A cluster (``--address``) is Ray's to judge.
+
+    Raises:
+        CommandError: one line, naming the machine's CPUs.
+    """
+    available = os.cpu_count() or 1
+    if address is None and cpus > available:
+        raise CommandError(
+            f"--cpus-per-trial {cpus}: this machine has {available} CPUs, and Ray started here would wait forever "
+            f"for a trial's {cpus}; give at most {available} (or --address a cluster)"
+        )
+    return cpus
 
 
 @contextmanager

@@ -1,0 +1,32 @@
+"""Sizes a user asks for, checked against the machine before the work starts, and what training leaves behind
+(issue 43, item 10)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from heartpole.cli import main
+
+pytest.importorskip("stable_baselines3")
+
+
+def _one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    return err
+
+
+@pytest.mark.parametrize("command", ["train", "tune"])
+def test_more_cpus_per_trial_than_the_machine_has_is_refused(capsys, monkeypatch, tmp_path: Path, command: str) -> None:
+    pytest.importorskip("ray")
+    pytest.importorskip("optuna")
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    out = str(tmp_path / "o")
+    extra = ["--seeds", "0-1", "--ray"] if command == "train" else ["--trials", "1"]
+    err = _one_line(capsys, [command, *extra, "--cpus-per-trial", "1000", "--timesteps", "64", "--out", out])
+    assert "--cpus-per-trial 1000: this machine has 2 CPUs" in err and "give at most 2" in err
+    assert not (tmp_path / "o").exists()
