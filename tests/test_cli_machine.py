@@ -30,3 +30,16 @@ def test_more_cpus_per_trial_than_the_machine_has_is_refused(capsys, monkeypatch
     err = _one_line(capsys, [command, *extra, "--cpus-per-trial", "1000", "--timesteps", "64", "--out", out])
     assert "--cpus-per-trial 1000: this machine has 2 CPUs" in err and "give at most 2" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_training_leaves_no_sb3_folder_in_the_temporary_folder(tmp_path: Path, monkeypatch) -> None:
+    import tempfile
+
+    from heartpole.training import preset_config, train_model
+
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temporary))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    train_model(preset_config(timesteps=64, n_envs=2))
+    assert [p.name for p in temporary.iterdir() if p.name.startswith("SB3-")] == []
