@@ -43,3 +43,28 @@ def test_training_leaves_no_sb3_folder_in_the_temporary_folder(tmp_path: Path, m
     monkeypatch.delenv("SB3_LOGDIR", raising=False)
     train_model(preset_config(timesteps=64, n_envs=2))
     assert [p.name for p in temporary.iterdir() if p.name.startswith("SB3-")] == []
+
+
+def test_a_network_larger_than_the_memory_is_refused_before_it_is_built(capsys, tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from heartpole.training import preset_config
+    from heartpole.training.presets import save_preset
+
+    preset = tmp_path / "p.json"
+    save_preset(replace(preset_config(), net_arch=(10**9,), timesteps=64, n_envs=2), preset)
+    err = _one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
+    assert "net_arch [1000000000] has 12,000,000,005 parameters per network" in err and "GiB of memory" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_network_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
+    from heartpole.training import checks
+
+    needed = checks.check_network_memory((64, 64), 6, 4)
+    assert needed == (6 * 64 + 64 + 64 * 64 + 64 + 64 * 5 + 5) * checks.NETWORK_BYTES_PER_PARAMETER
+    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed)
+    checks.check_network_memory((64, 64), 6, 4)
+    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed - 1)
+    with pytest.raises(ValueError, match=r"net_arch \[64, 64\] has 4,933 parameters per network"):
+        checks.check_network_memory((64, 64), 6, 4)
