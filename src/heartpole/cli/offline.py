@@ -238,6 +238,7 @@ def format_report(report: OPEReport) -> str:
             _ci(e.ci95),
             fixed(report.error(e), 4, sign=True),
             fixed(abs(report.error(e)), 4),
+            "-" if e.weights is None else f"{e.weights.effective_sample_size:.1f}",
         ]
         for e in report.estimates
     ]
@@ -249,7 +250,7 @@ def format_report(report: OPEReport) -> str:
     )
     if report.people:
         header += "\n" + _oracle_line(report)
-    return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|"], rows)])
+    return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|", "ESS"], rows)])
 
 
 # ------------------------------------------------------------------------------------------------------
