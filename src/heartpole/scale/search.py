@@ -32,10 +32,10 @@ from heartpole.scale.trials import (
 OBJECTIVE = "objective"
 SEARCH_NAME = "search"
 SEARCH_SETTINGS_FILE = "search.json"
+"""The search's settings in its folder (what a resumed search checks it continues)."""
 SEARCH_FORMAT = "heartpole-search/1"
 """The ``format`` of the ``search.json`` this HeartPole writes and resumes (one written before the field existed,
 with the same keys, resumes too)."""
-"""The search's settings in its folder (what a resumed search checks it continues)."""
 TRIALS_FILE = "trials.csv"
 PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
