@@ -18,6 +18,13 @@ def test_equal_weights_count_every_episode() -> None:
     assert (diagnostics.weight_horizon, diagnostics.lost_share, diagnostics.warning) == (8, 0.0, None)
 
 
+def test_a_small_dataset_with_equal_weights_is_not_warned_about() -> None:
+    assert weight_diagnostics(np.ones((4, 10)), 0.95).warning is None  # 4 of 4: small, but not the weights' doing
+    weights = np.ones((4, 10))
+    weights[1:] = 1e-4
+    assert "effective sample size 1.0 of 4 episodes" in str(weight_diagnostics(weights, 0.95).warning)
+
+
 def test_one_heavy_episode_counts_as_about_one() -> None:
     weights = np.full((1000, 4), 1e-6)
     weights[0] = 1.0

@@ -11,7 +11,9 @@ at which some episode keeps a weight, those estimators see nothing and count the
 
 Too small to mean anything (decided here, and warned about): an effective sample size below
 [`MIN_ESS`][heartpole.offline.weights.MIN_ESS] episodes or below
-[`MIN_ESS_SHARE`][heartpole.offline.weights.MIN_ESS_SHARE] of the dataset's episodes, or no weight left past a
+[`MIN_ESS_SHARE`][heartpole.offline.weights.MIN_ESS_SHARE] of the dataset's episodes, and below half of them
+(a dataset of fewer than 20 episodes is small whatever its weights; equal weights are not what is warned
+about), or no weight left past a
 step while the steps after it carry more than [`MAX_LOST_SHARE`][heartpole.offline.weights.MAX_LOST_SHARE] of the
 discounted weight.
 """
@@ -61,7 +63,7 @@ class WeightDiagnostics:
                 where = f"no episode keeps weight past step {self.weight_horizon}"
             return (f"{where}: the {self.steps - self.weight_horizon:,} steps after it ({self.lost_share:.0%} of the "
                     f"discounted weight) count as 0 in PDIS, WPDIS and DR's correction; {ess}")  # fmt: skip
-        if self.effective_sample_size < max(MIN_ESS, MIN_ESS_SHARE * self.episodes):
+        if self.effective_sample_size < min(max(MIN_ESS, MIN_ESS_SHARE * self.episodes), self.episodes / 2):
             return (
                 f"{ess} (Kish, discount-weighted over steps): too few for PDIS, WPDIS and DR's correction to mean much"
             )
