@@ -146,8 +146,20 @@ __all__ = [
     "check_writable",
     "describe_error",
     "expect_output",
+    "followed",
     "forget_outputs",
     "naming_target",
     "note_placed",
     "outputs_placed",
 ]
+
+
+def followed(target: PathLike) -> Path:
+    """``target``, or where it leads if it is a symbolic link (followed to its end): every command writes through
+    a link given as its output, to the file or folder it names, and never replaces the link itself (a link is
+    how a user keeps outputs on another disk). A link that leads nowhere stays as it is, for
+    [`check_writable`][heartpole.paths.check_writable] to refuse."""
+    path = Path(target)
+    if path.is_symlink() and path.exists():
+        return Path(os.path.realpath(path))
+    return path

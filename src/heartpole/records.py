@@ -63,7 +63,7 @@ def sb3_model(config: Any, venv: VecEnv) -> BaseAlgorithm:
     """The SB3 model of ``config`` (its algorithm, network, hyperparameters and seed) on ``venv``.
 
     ``anneal_learning_rate`` becomes a [`LinearSchedule`][heartpole.records.LinearSchedule], and a PPO
-    minibatch is capped at the rollout's size.
+    minibatch is capped at the rollout's size. Its logger writes no files.
     """
     import stable_baselines3 as sb3
 
@@ -74,7 +74,7 @@ def sb3_model(config: Any, venv: VecEnv) -> BaseAlgorithm:
     if config.algo == "ppo" and "batch_size" in hyperparameters:  # a minibatch cannot exceed the rollout
         rollout = int(hyperparameters.get("n_steps", 2048)) * config.n_envs
         hyperparameters["batch_size"] = min(int(hyperparameters["batch_size"]), rollout)
-    return algorithm(
+    model = algorithm(
         "MlpPolicy",
         venv,
         policy_kwargs={"net_arch": list(config.net_arch)},
@@ -83,6 +83,12 @@ def sb3_model(config: Any, venv: VecEnv) -> BaseAlgorithm:
         verbose=0,
         **hyperparameters,
     )
+    # A logger of its own, writing nowhere: SB3's default makes an empty SB3-<timestamp>/ folder in the system's
+    # temporary folder at every learn() call and leaves it there.
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 def versions(**extra: str) -> dict[str, str]:
@@ -118,11 +124,14 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
 
 
 def run_description(config: Any) -> dict[str, Any]:
-    """What every backend's ``heartpole.json`` says first: the run's algorithm, env, seed, steps, preset,
-    policy class and whole configuration."""
+    """What every backend's ``heartpole.json`` says first: the run's algorithm, env (id and keyword arguments:
+    what ``heartpole evaluate`` and the other commands play the model on, see
+    [`heartpole.policies.trained_env`][heartpole.policies.trained_env]), seed, steps, preset, policy class and
+    whole configuration."""
     return {
         "algo": config.algo,
         "env_id": config.env_id,
+        "env_kwargs": dict(config.env_kwargs),
         "seed": config.seed,
         "timesteps": config.timesteps,
         "preset": config.preset,

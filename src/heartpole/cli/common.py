@@ -158,7 +158,7 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
             [`writable`][heartpole.cli.common.writable]).
     """
     not_empty("--out", os.fspath(path))
-    target = Path(path)
+    target = paths.followed(path)  # a symbolic link: the file it leads to is written, the link stays
     if suffixes is not None and target.suffix.lower() not in suffixes:
         suffix = target.suffix or "(none)"
         raise CommandError(f"{target}: unsupported file type {suffix!r}; use one of {list(suffixes)}")

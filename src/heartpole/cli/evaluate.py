@@ -30,6 +30,7 @@ from heartpole.cli.common import (
     seed_int,
     tell_normalization,
 )
+from heartpole.cli.envs import add_env_options, choose_env
 from heartpole.progress import progress
 from heartpole.stats import fixed
 
@@ -103,7 +104,7 @@ def _register_baselines(subparsers: Subparsers) -> None:
 
 
 def _add_run_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    add_env_options(parser)
     parser.add_argument("--episodes", type=positive_int, default=2000, metavar="N", help="episodes (default 2000)")
     parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
     parser.add_argument(
@@ -117,17 +118,22 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
     add_trust_pickles(parser)
 
 
-def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    """The env keyword arguments of ``--people`` and ``--observe-traits``, each person's optimum solved (once,
-    cached; a progress bar meanwhile) before any policy is loaded."""
+def _env_kwargs(args: argparse.Namespace, specs: Sequence[str]) -> dict[str, Any]:
+    """Set ``args.env`` and return the env keyword arguments: ``--env`` and ``--env-kwargs``, else the env the
+    models' folders record ([`choose_env`][heartpole.cli.envs.choose_env]), with ``--people`` and
+    ``--observe-traits``; each person's optimum solved (once, cached; a progress bar meanwhile) before any policy
+    is loaded."""
     from heartpole.truth import people_truth
 
     if args.observe_traits and args.people is None:
         raise CommandError("--observe-traits needs --people (the traits are the person's)")
-    if args.people is None:
-        return {}
-    kwargs = {"people": args.people, "observe_traits": True} if args.observe_traits else {"people": args.people}
-    _library(lambda: people_truth(args.env, kwargs, show_progress=True))
+    args.env, kwargs = choose_env(args, specs)
+    if args.people is not None:  # --people replaces any people the record has
+        traits = {"observe_traits": True} if args.observe_traits else {}
+        kwargs = {k: v for k, v in kwargs.items() if k not in ("people", "observe_traits")} | {"people": args.people}
+        kwargs |= traits
+    if kwargs.get("people") is not None:
+        _library(lambda: people_truth(args.env, kwargs, show_progress=True))
     return kwargs
 
 
@@ -137,7 +143,7 @@ def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     """``heartpole evaluate``: one policy's result, as a table or JSON."""
-    args.env_kwargs = _env_kwargs(args)
+    args.env_kwargs = _env_kwargs(args, [args.policy])
     result = _evaluate(args.policy, _policy(args.policy, args), args)
     print(json.dumps(result.to_dict(), allow_nan=False) if args.json else format_result(result))
     return 0
@@ -149,7 +155,7 @@ def run_compare(args: argparse.Namespace) -> int:
 
     if len(args.policy) != 2:
         raise CommandError(f"compare needs exactly two --policy options, got {len(args.policy)}")
-    args.env_kwargs = _env_kwargs(args)
+    args.env_kwargs = _env_kwargs(args, args.policy)
     policies = [_policy(spec, args) for spec in args.policy]  # both checked before either runs
     a, b = (_evaluate(spec, policy, args) for spec, policy in zip(args.policy, policies))
     comparison = _library(lambda: Comparison.of(a, b))
@@ -163,7 +169,7 @@ def run_baselines(args: argparse.Namespace) -> int:
     from heartpole.policies import BUILTIN_POLICIES, available_builtins
 
     markdown_path, csv_path = output_files(args.out, ["baselines.md", "baselines.csv"], force=args.force)
-    args.env_kwargs = _env_kwargs(args)
+    args.env_kwargs = _env_kwargs(args, args.policy)
     extras = [spec for spec in args.policy if spec not in BUILTIN_POLICIES]
     loaded = {spec: _policy(spec, args) for spec in extras}  # fail before the long run, not after it
     builtins = _library(lambda: available_builtins(args.env, args.env_kwargs))
@@ -187,8 +193,11 @@ def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
     """``spec`` checked before any episode runs: a built-in's name ([`evaluate`][heartpole.evaluation.evaluate]
     builds it with the run's seed), or the loaded model (the user hears which statistics it applies)."""
     from heartpole.policies import BUILTIN_POLICIES, load_policy
+    from heartpole.policies.trained_env import model_file
 
-    policy = _library(lambda: load_policy(spec, args.env, env_kwargs=args.env_kwargs, trust_pickles=args.trust_pickles))
+    policy = _library(
+        lambda: load_policy(model_file(spec), args.env, env_kwargs=args.env_kwargs, trust_pickles=args.trust_pickles)
+    )
     if spec in BUILTIN_POLICIES:
         return spec
     tell_normalization(policy)
@@ -201,7 +210,7 @@ def _evaluate(spec: str, policy: PolicyLike, args: argparse.Namespace) -> Evalua
     from heartpole.evaluation import evaluate
     from heartpole.registry import env_dynamics
 
-    max_steps = _library(lambda: env_dynamics(args.env).params.max_steps)
+    max_steps = _library(lambda: env_dynamics(args.env, args.env_kwargs).params.max_steps)
     with progress(args.episodes * max_steps, f"{spec}") as bar:
         return _library(
             lambda: evaluate(

@@ -13,7 +13,7 @@ import sys
 import warnings
 from collections.abc import Callable
 from types import ModuleType
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from heartpole.cli.common import (
     CommandError,
@@ -26,6 +26,7 @@ from heartpole.cli.common import (
     raise_arg,
     seed_int,
 )
+from heartpole.cli.envs import add_env_options, choose_env
 from heartpole.progress import progress
 from heartpole.stats import fixed
 
@@ -86,7 +87,7 @@ def _register_dataset(subparsers: Subparsers) -> None:
         "--epsilon", type=_epsilon, default=0.0, metavar="E", help="share of random actions in [0, 1] (default 0)"
     )
     parser.add_argument("--episodes", type=positive_int, default=1000, metavar="N", help="episodes (default 1000)")
-    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    add_env_options(parser)
     parser.add_argument("--seed", type=seed_int, default=0, metavar="S", help="seed, >= 0 (default 0)")
     parser.add_argument("--id", dest="dataset_id", metavar="ID", help="dataset id (default: from policy and epsilon)")
     parser.add_argument("--force", action="store_true", help="replace an existing dataset of the same id")
@@ -137,6 +138,8 @@ def _register_ope(subparsers: Subparsers) -> None:
 
 def run_dataset(args: argparse.Namespace) -> int:
     """``heartpole dataset``: record one dataset, or the standard collection."""
+    from heartpole.policies.trained_env import model_file
+
     datasets = _offline("datasets")
     if args.standard == bool(args.policy):
         raise CommandError("give either --policy P or --standard")
@@ -151,7 +154,10 @@ def run_dataset(args: argparse.Namespace) -> int:
         raise CommandError("--measurement records one dataset: give --policy P, not --standard")
     if args.policy is not None:
         _check_policy(args.policy)
-    max_steps = _library(lambda: _max_steps(args.env))
+    args.env, env_kwargs = choose_env(args, [] if args.policy is None else [args.policy])
+    if args.standard and env_kwargs:
+        raise CommandError("--env-kwargs records one dataset: give --policy P, not --standard")
+    max_steps = _library(lambda: _max_steps(args.env, env_kwargs))
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
         with progress(total, "recording the standard datasets") as bar:
@@ -166,7 +172,7 @@ def run_dataset(args: argparse.Namespace) -> int:
     with progress(args.episodes * max_steps, f"recording {args.policy}") as bar:
         dataset = _library(
             lambda: datasets.record_dataset(
-                args.policy,
+                model_file(args.policy),
                 args.epsilon,
                 args.episodes,
                 args.env,
@@ -177,6 +183,7 @@ def run_dataset(args: argparse.Namespace) -> int:
                 people=args.people,
                 observe_traits=args.observe_traits,
                 measurement=args.measurement,
+                env_kwargs=env_kwargs,
             )
         )
     meta = dataset.storage.metadata
@@ -191,14 +198,17 @@ def run_dataset(args: argparse.Namespace) -> int:
 
 def run_ope(args: argparse.Namespace) -> int:
     """``heartpole ope``: each estimator's estimate, its error against the truth, the truth's interval."""
+    from heartpole.policies.trained_env import model_file
+
     ope = _offline("ope")
     _check_policy(args.policy)
+    _tell_trained_env(args.policy, args.dataset)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         report = _library(
             lambda: ope.evaluate_off_policy(
                 args.dataset,
-                args.policy,
+                model_file(args.policy),
                 args.gamma,
                 truth_episodes=args.truth_episodes,
                 seed=args.seed,
@@ -228,6 +238,7 @@ def format_report(report: OPEReport) -> str:
             _ci(e.ci95),
             fixed(report.error(e), 4, sign=True),
             fixed(abs(report.error(e)), 4),
+            "-" if e.weights is None else f"{e.weights.effective_sample_size:.1f}",
         ]
         for e in report.estimates
     ]
@@ -239,7 +250,7 @@ def format_report(report: OPEReport) -> str:
     )
     if report.people:
         header += "\n" + _oracle_line(report)
-    return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|"], rows)])
+    return "\n".join([header, format_table(["estimator", "estimate", "95% CI", "error", "|error|", "ESS"], rows)])
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -299,6 +310,18 @@ def _check_policy(spec: str) -> str:
     return spec
 
 
+def _tell_trained_env(spec: str, dataset_id: str) -> None:
+    """Say on stderr, for a model whose folder records the env it was trained on, that ``ope`` plays the dataset's
+    env (the one whose behaviour the importance weights correct for), naming both."""
+    from heartpole.policies.trained_env import trained_env
+
+    trained = _library(lambda: trained_env(spec))
+    if trained is not None:
+        meta = _library(lambda: _offline("datasets").load_local(dataset_id).storage.metadata)
+        print(f"playing the dataset's env {meta.get('env_id')} ({meta.get('max_steps')} steps per episode); {spec} "
+              f"was trained on {trained.describe()} as recorded in {trained.source}", file=sys.stderr)  # fmt: skip
+
+
 def _offline(module: str) -> ModuleType:
     import importlib
 
@@ -309,10 +332,10 @@ def _offline(module: str) -> ModuleType:
     return importlib.import_module(f"heartpole.offline.{module}")
 
 
-def _max_steps(env_id: str) -> int:
+def _max_steps(env_id: str, env_kwargs: dict[str, Any] | None = None) -> int:
     from heartpole.registry import env_dynamics
 
-    return int(env_dynamics(env_id).params.max_steps)
+    return int(env_dynamics(env_id, env_kwargs).params.max_steps)
 
 
 def _library(call: Callable[[], T]) -> T:

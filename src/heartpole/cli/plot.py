@@ -12,7 +12,7 @@ import argparse
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from heartpole.cli.common import (
     seed_int,
     tell_normalization,
 )
+from heartpole.cli.envs import add_env_options, choose_env
 from heartpole.parameters import Params
 from heartpole.progress import Progress, progress
 
@@ -37,7 +38,6 @@ if TYPE_CHECKING:
 
 ORDER = 30
 
-DEFAULT_ENV = "HeartPole-v0"
 INSTALL_HINT = 'install the plot extra: pip install "heartpole[plot]"'
 
 
@@ -124,7 +124,7 @@ def _add_episode_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (0)")
     parser.add_argument("--steps", type=positive_int, default=None, help="decisions in the episode (the env's, 1000)")
-    parser.add_argument("--env", default=DEFAULT_ENV, metavar="ID", help=f"HeartPole env id ({DEFAULT_ENV})")
+    add_env_options(parser)
     add_trust_pickles(parser)
 
 
@@ -137,17 +137,21 @@ def _require_matplotlib() -> None:
         raise CommandError(f"plots need matplotlib; {INSTALL_HINT}") from None
 
 
-def _env_kwargs(args: argparse.Namespace) -> dict[str, int]:
-    return {} if args.steps is None else {"max_steps": args.steps}
+def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """Set ``args.env`` (``--env``, else the env the model's folder records, else HeartPole-v0) and return its
+    keyword arguments, ``--steps`` as ``max_steps``."""
+    args.env, kwargs = choose_env(args, [args.policy])
+    return kwargs if args.steps is None else {**kwargs, "max_steps": args.steps}
 
 
-def _policy(args: argparse.Namespace) -> Policy:
-    """The policy named by ``--policy`` for ``--env``, or a one-line error."""
+def _policy(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> Policy:
+    """The policy named by ``--policy`` for ``--env`` made with ``env_kwargs``, or a one-line error."""
     from heartpole.policies import load_policy
+    from heartpole.policies.trained_env import model_file
 
     try:
         policy = load_policy(
-            args.policy, args.env, env_kwargs=_env_kwargs(args), rng=args.seed, trust_pickles=args.trust_pickles
+            model_file(args.policy), args.env, env_kwargs=env_kwargs, rng=args.seed, trust_pickles=args.trust_pickles
         )
     except (ValueError, FileNotFoundError) as error:
         raise CommandError(str(error)) from None
@@ -176,8 +180,9 @@ def plot_episode(args: argparse.Namespace) -> int:
     """``heartpole plot episode --policy P --out FILE.png``: one episode as a dashboard."""
     _require_matplotlib()
     target = output_file(args.out, force=args.force, suffixes=[".png"])
-    policy = _policy(args)
-    trace = plots.trace_episode(policy, args.env, args.seed, **_env_kwargs(args))
+    kwargs = _env_kwargs(args)
+    policy = _policy(args, kwargs)
+    trace = plots.trace_episode(policy, args.env, args.seed, **kwargs)
     title = (
         f"{args.env}, policy {args.policy}, seed {args.seed}: return {trace.episode_return:.2f}, "
         f"final score {trace.score[-1]:.3f}, heart attacks {int(trace.heart_attacks.sum())}"
@@ -214,9 +219,10 @@ def record(args: argparse.Namespace) -> int:
     """``heartpole record --policy P --out FILE.mp4|.gif``: a video of one episode from its rgb_array frames."""
     target = output_file(args.out, force=args.force, suffixes=list(plots.VIDEO_SUFFIXES))
     _check_video_writer(target.suffix.lower())
-    policy = _policy(args)
-    frames = plots.episode_frames(policy, args.env, args.seed, **_env_kwargs(args))
-    total = (args.steps or _default_steps(args.env)) + 1
+    kwargs = _env_kwargs(args)
+    policy = _policy(args, kwargs)
+    frames = plots.episode_frames(policy, args.env, args.seed, **kwargs)
+    total = _default_steps(args.env, kwargs) + 1
     with progress(total, f"recording {target.name}") as bar:
         count = 0
 
@@ -235,16 +241,13 @@ def _counted(frames: Iterator[np.ndarray], bar: Progress) -> Iterator[np.ndarray
         yield frame
 
 
-def _default_steps(env_id: str) -> int:
-    """The episode length of ``env_id`` as registered (for the progress bar)."""
-    import gymnasium as gym
-
-    from heartpole.registry import quiet_version_warnings
+def _default_steps(env_id: str, env_kwargs: dict[str, Any]) -> int:
+    """The episode length of ``env_id`` made with ``env_kwargs`` (for the progress bar)."""
+    from heartpole.registry import env_dynamics
 
     try:
-        with quiet_version_warnings():
-            return int(gym.spec(env_id).kwargs.get("max_steps", 1000))
-    except gym.error.Error:
+        return int(env_dynamics(env_id, env_kwargs).params.max_steps)
+    except (ValueError, TypeError):
         return 1000
 
 

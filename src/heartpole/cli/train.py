@@ -168,6 +168,17 @@ def whole_number(name: str, text: str | None, minimum: int) -> int | None:
     return value
 
 
+def training_seed(name: str, seed: int) -> int:
+    """``seed`` if training can use it (NumPy's and Stable-Baselines3's seeding takes 0 to 2**32 - 1), else a
+    one-line [`CommandError`][heartpole.cli.common.CommandError] naming ``name`` and the accepted range."""
+    from heartpole.training.presets import MAX_TRAINING_SEED
+
+    if seed > MAX_TRAINING_SEED:
+        raise CommandError(f"{name}: a training seed is a whole number from 0 to {MAX_TRAINING_SEED:,} (2**32 - 1), "
+                           f"got {seed:,}")  # fmt: skip
+    return seed
+
+
 def parse_seeds(text: str, backend: str = "sb3") -> list[int]:
     """Seeds from ``"0-4"``, ``"0,3,7"`` or a mix (``"0-2,9"``): distinct whole numbers >= 0, in order given.
 
@@ -186,6 +197,7 @@ def parse_seeds(text: str, backend: str = "sb3") -> list[int]:
             raise CommandError(f"--seeds takes a list like 0-4 or 0,3,7, got {text!r}") from None
         if first < 0 or last < first:
             raise CommandError(f"--seeds takes ranges low-high with 0 <= low <= high, got {part!r}")
+        training_seed("--seeds", last)
         if last - first + len(seeds) >= MAX_SEEDS[backend]:
             raise CommandError(f"--seeds: at most {MAX_SEEDS[backend]:,} seeds with --backend {backend}, got {text!r}")
         seeds.extend(range(first, last + 1))
@@ -213,7 +225,7 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
         overrides["timesteps"] = timesteps
     if n_envs is not None:
         overrides["n_envs"] = n_envs
-    overrides["seed"] = whole_number("--seed", args.seed, 0)
+    overrides["seed"] = training_seed("--seed", whole_number("--seed", args.seed, 0))
     people = _people_kwargs(args)
     if people and not is_file:
         overrides["env_kwargs"] = people
@@ -337,7 +349,23 @@ def _check_ray_options(args: argparse.Namespace, seeds: list[int] | None) -> int
     missing = missing_ray_modules()
     if missing:
         raise CommandError(f"--ray needs {', '.join(missing)}, which this Python cannot import: {RAY_EXTRA}")
-    return whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1
+    return check_cpus_per_trial(whole_number("--cpus-per-trial", args.cpus_per_trial, 1) or 1, args.address)
+
+
+def check_cpus_per_trial(cpus: int, address: str | None) -> int:
+    """``cpus`` if Ray started on this machine (no ``--address``) can give a trial that many: more than the
+    machine's CPUs and every trial would wait for them forever. A cluster (``--address``) is Ray's to judge.
+
+    Raises:
+        CommandError: one line, naming the machine's CPUs.
+    """
+    available = os.cpu_count() or 1
+    if address is None and cpus > available:
+        raise CommandError(
+            f"--cpus-per-trial {cpus}: this machine has {available} CPUs, and Ray started here would wait forever "
+            f"for a trial's {cpus}; give at most {available} (or --address a cluster)"
+        )
+    return cpus
 
 
 @contextmanager

@@ -17,6 +17,7 @@ from heartpole import files, paths
 from heartpole.cli.common import CommandError, Subparsers, format_table, not_empty, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
+    check_cpus_per_trial,
     format_cpu,
     missing_ray_modules,
     missing_training_modules,
@@ -125,7 +126,7 @@ def run_tune(args: argparse.Namespace) -> int:
     if missing:
         raise CommandError(f"tune needs {', '.join(missing)}, which this Python cannot import: {RAY_EXTRA}")
     settings = build_settings(args)
-    cpus = whole_number("--cpus-per-trial", args.cpus_per_trial, 1)
+    cpus = check_cpus_per_trial(whole_number("--cpus-per-trial", args.cpus_per_trial, 1), args.address)
     from heartpole import scale
     from heartpole.registry import env_dynamics
 

@@ -23,16 +23,11 @@ the metadata: see [`heartpole.offline.population`][heartpole.offline.population]
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
 import re
-import shutil
 import time
-import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -42,9 +37,10 @@ if TYPE_CHECKING:
     from minari import MinariDataset
     from minari.data_collector import EpisodeBuffer
 
-from heartpole import files, paths
+from heartpole import paths
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.measurement import Measurement
+from heartpole.offline import folder
 from heartpole.offline.behaviour import EpsilonGreedy, Mixture, check_epsilon
 from heartpole.offline.population import (
     measurement_kwargs,
@@ -134,6 +130,7 @@ def record_dataset(
     people: People | str | None = None,
     observe_traits: bool = False,
     measurement: Measurement | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
 ) -> MinariDataset:
     """Record ``episodes`` episodes of ``policy`` with ``epsilon`` random actions as a Minari dataset.
 
@@ -157,6 +154,7 @@ def record_dataset(
         observe_traits: append each person's traits to the observation (needs ``people``).
         measurement: what the behaviour observes of the state
             ([`Measurement`][heartpole.measurement.Measurement]; recorded in the metadata).
+        env_kwargs: the env's other keyword arguments (``max_steps``, ``heart_attack_proclivity``, ...).
 
     The dataset's env (``env_spec`` and ``eval_env``, so ``recover_environment()``) is ``env_id`` made with
     these people, traits and measurement, and its spaces are the data's
@@ -171,12 +169,12 @@ def record_dataset(
     """
     import minari
 
-    env_kwargs = {**people_kwargs(people, observe_traits), **measurement_kwargs(measurement)}
+    env_kwargs = {**(env_kwargs or {}), **people_kwargs(people, observe_traits), **measurement_kwargs(measurement)}
     target_id, create = _plan(policy, epsilon, episodes, env_id, seed, dataset_id, force, description, num_envs,
                               progress, env_kwargs,
                               people_suffix(people, observe_traits) + measurement_suffix(measurement))  # fmt: skip
     with quiet_version_warnings():
-        _write_atomically({target_id: create}, force)
+        folder.write_atomically({target_id: create}, force)
         return minari.load_dataset(target_id)
 
 
@@ -202,7 +200,7 @@ def _plan(
     epsilon = check_epsilon(epsilon)
     env_kwargs = env_kwargs or {}
     spec = recorded_spec(env_id, env_kwargs)  # checks the env and its kwargs before anything runs
-    base, behaviour = behaviour_policy(policy, epsilon, env_id, seed)
+    base, behaviour = behaviour_policy(policy, epsilon, env_id, seed, env_kwargs)
     components = base.policies if isinstance(base, Mixture) else [base]
     name = behaviour_name(policy_name(base), epsilon)
     target_id = default_dataset_id(name + suffix, env_id) if dataset_id is None else dataset_id
@@ -243,10 +241,16 @@ def _plan(
         "requirements": [f"heartpole>={_version()}"],
     }
 
+    shape = (int(extra["max_steps"]), len(extra["observation_names"]) + 8, len(extra["action_names"]))
+    where = _root()  # the scratch folder Minari writes into while recording is in it, on the same file system
+    folder.check_room(where / target_id, folder.dataset_bytes(episodes, *shape), f"dataset {target_id!r}")
+
     def create() -> None:
         started = time.perf_counter()
         dataset = None
         for part in iter_collect(behaviour, episodes, env_id, seeds, progress, env_kwargs):
+            room = folder.dataset_bytes(chunk, *shape)  # checked before each chunk: HDF5 fails badly on a full disk
+            folder.check_room(where, room, f"dataset {target_id!r}")
             if dataset is None:
                 dataset = minari.create_dataset_from_buffers(target_id, to_buffers(part), **options)
             else:
@@ -284,7 +288,7 @@ def record_standard(
         for spec, target in zip(specs, ids)
     )  # fmt: skip
     with quiet_version_warnings():
-        _write_atomically(plans, force)
+        folder.write_atomically(plans, force)
     return ids
 
 
@@ -330,11 +334,11 @@ def to_buffers(trajectories: Trajectories) -> list[EpisodeBuffer]:
     ]
 
 
-def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
+def _resolve(policy: object, env_id: str, seed: int, index: int, env_kwargs: Mapping[str, Any]) -> Policy:
     """``policy`` (any of the components the caller was given) as a [`Policy`][heartpole.policies.Policy], or a
     ``ValueError``."""
     if isinstance(policy, str):
-        loaded = load_policy(policy, env_id, rng=policy_rng(seed, index))
+        loaded = load_policy(policy, env_id, env_kwargs=env_kwargs, rng=policy_rng(seed, index))
         if getattr(loaded, "needs_decisions_left", False) or getattr(loaded, "needs_person", False):
             raise ValueError(f"policy {policy!r} acts on the decisions left or the person, not recorded in a dataset")
         return loaded
@@ -344,14 +348,15 @@ def _resolve(policy: object, env_id: str, seed: int, index: int) -> Policy:
 
 
 def behaviour_policy(
-    policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0
-) -> tuple[Policy, EpsilonGreedy]:
+    policy: PolicyLike | Sequence[PolicyLike], epsilon: float, env_id: str = "HeartPole-v0", seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+) -> tuple[Policy, EpsilonGreedy]:  # fmt: skip
     """``(base, behaviour)``: the policy (or the per-step mixture of several) and its epsilon-greedy
-    behaviour, with the random streams [`record_dataset`][heartpole.offline.datasets.record_dataset] uses for
-    ``seed``."""
-    num_actions = len(env_dynamics(env_id).actions)
+    behaviour in ``env_id`` made with ``env_kwargs``, with the random streams
+    [`record_dataset`][heartpole.offline.datasets.record_dataset] uses for ``seed``."""
+    num_actions = len(env_dynamics(env_id, env_kwargs).actions)
     components = list(policy) if isinstance(policy, (list, tuple)) else [policy]
-    bases = [_resolve(p, env_id, seed, n) for n, p in enumerate(components)]
+    bases = [_resolve(p, env_id, seed, n, env_kwargs or {}) for n, p in enumerate(components)]
     base: Policy = bases[0] if len(bases) == 1 else Mixture(bases, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 1))
     return base, EpsilonGreedy(base, epsilon, num_actions, rng=_rng(seed, _BEHAVIOUR_STREAM, 0))
 
@@ -366,8 +371,7 @@ def _rng(seed: int, *key: int) -> np.random.Generator:
 
 def _root() -> Path:
     """Minari's datasets folder, as Minari itself finds it."""
-    configured = os.environ.get("MINARI_DATASETS_PATH")
-    return Path(configured) if configured is not None else Path.home() / ".minari" / "datasets"
+    return folder.root()
 
 
 def local_root() -> Path:
@@ -377,52 +381,6 @@ def local_root() -> Path:
 
 def _exists(target_id: str) -> bool:
     return (_root() / target_id).exists()
-
-
-def _write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:
-    """Run each dataset's ``create`` with Minari pointed at a hidden scratch folder in its datasets folder,
-    then move the datasets into place together, signals deferred ([`heartpole.files`][heartpole.files]): an error or an
-    interruption leaves Minari's folder as it was; once they are all in place, a command ends as a success."""
-    root = _root()
-    paths.expect_output(*(root / target_id for target_id in creates))
-    with files.scratch_folder(root, "heartpole-datasets") as scratch:
-        with _minari_root(scratch):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)  # Minari's notices about optional metadata
-                for create in creates.values():
-                    create()
-        with files.signals_deferred():
-            existing = [target_id for target_id in creates if (root / target_id).exists()]
-            if existing and not force:
-                raise FileExistsError(f"dataset {existing[0]!r} already exists in {root}; pass force=True (--force)")
-            for target_id in creates:
-                (root / target_id).parent.mkdir(parents=True, exist_ok=True)
-                _copy_namespace_metadata(scratch, root, target_id)
-                files.replace_folder(scratch / target_id, root / target_id)
-
-
-def _copy_namespace_metadata(temporary: Path, root: Path, target_id: str) -> None:
-    """Give the real namespaces (``heartpole``, ``heartpole/v0``) the metadata files Minari made for them."""
-    parts = target_id.split("/")[:-1]
-    for depth in range(1, len(parts) + 1):
-        namespace = Path(*parts[:depth])
-        for source in (temporary / namespace).glob("*.json"):
-            destination = root / namespace / source.name
-            if not destination.exists():
-                files.atomic_write(destination, partial(shutil.copyfile, source))
-
-
-@contextlib.contextmanager
-def _minari_root(path: Path) -> Iterator[None]:
-    previous = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(path)
-    try:
-        yield
-    finally:
-        if previous is None:
-            del os.environ["MINARI_DATASETS_PATH"]
-        else:
-            os.environ["MINARI_DATASETS_PATH"] = previous
 
 
 # ------------------------------------------------------------------------------------------------------

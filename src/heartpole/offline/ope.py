@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -50,6 +50,7 @@ from heartpole.offline.behaviour import action_probabilities
 from heartpole.offline.population import dataset_env_kwargs, people_truth_fields
 from heartpole.offline.trajectories import Trajectories
 from heartpole.offline.truth import DEFAULT_GAMMA, TrueValue, true_value
+from heartpole.offline.weights import WeightDiagnostics, weight_diagnostics
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.stats import confidence_interval, json_interval, json_number
 
@@ -68,6 +69,8 @@ class Estimate:
     estimator: str
     value: float
     ci95: tuple[float, float] = NAN_PAIR
+    weights: WeightDiagnostics | None = None
+    """What its importance weights leave to estimate with (PDIS, WPDIS, DR; ``None`` for FQE)."""
 
 
 def target_probabilities(policy: Policy, trajectories: Trajectories, batch: int = 200_000) -> np.ndarray:
@@ -232,24 +235,27 @@ def estimate_all(
     Warns:
         RuntimeWarning: when the dataset's actions are the target's at fewer than
             [`LOW_SUPPORT`][heartpole.offline.ope.LOW_SUPPORT] of its steps (never, for a target the behaviour never
-            followed: an epsilon-0 dataset of another policy): the estimates then rest on almost nothing.
+            followed: an epsilon-0 dataset of another policy): the estimates then rest on almost nothing; and when
+            the importance weights' effective sample size is too small or no episode keeps weight past a step
+            ([`heartpole.offline.weights`][heartpole.offline.weights]; the estimates that weigh carry it).
     """
     if not 0.0 < float(gamma) <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
     target = target_probabilities(policy, trajectories)
     weights = importance_weights(target, trajectories)
     _warn_on_support(target, trajectories)
+    diagnostics = weight_diagnostics(weights, gamma)
+    if diagnostics.warning is not None and support(target, trajectories) >= LOW_SUPPORT:  # else said already
+        warnings.warn(diagnostics.warning, RuntimeWarning, stacklevel=2)
     rewards = trajectories.expected_rewards() if expected_rewards else trajectories.rewards
     fqe = LinearFQE(gamma, ridge, featurize).fit(trajectories, target, rewards)
     q = fqe.q_values(trajectories.observations)
     v = (q * target).sum(axis=2)
     q_taken = np.take_along_axis(q[:, :-1], trajectories.actions[..., None], axis=2)[..., 0]
-    return [
-        pdis(weights, rewards, gamma),
-        wpdis(weights, rewards, gamma),
-        Estimate("FQE", float(v[:, 0].mean())),
-        doubly_robust(weights, rewards, q_taken, v, gamma),
-    ]
+    weighed = [pdis(weights, rewards, gamma), wpdis(weights, rewards, gamma)]
+    weighed.append(doubly_robust(weights, rewards, q_taken, v, gamma))
+    pdis_, wpdis_, dr = (replace(e, weights=diagnostics) for e in weighed)
+    return [pdis_, wpdis_, Estimate("FQE", float(v[:, 0].mean())), dr]
 
 
 def support(target: np.ndarray, trajectories: Trajectories) -> float:
@@ -310,6 +316,7 @@ class OPEReport:
                     "value": json_number(e.value),
                     "ci95": json_interval(e.ci95),  # null without an interval (a dataset of one episode)
                     "error": json_number(self.error(e)),
+                    **_weights_dict(e.weights),
                 }
                 for e in self.estimates
             ],
@@ -321,6 +328,14 @@ class OPEReport:
                 "no_oracle_regret_reason", None if self.people else "the dataset was recorded without people"
             ),
         }
+
+
+def _weights_dict(weights: WeightDiagnostics | None) -> dict[str, Any]:
+    """An estimate's weight diagnostics in its JSON (null for FQE, which weighs nothing)."""
+    if weights is None:
+        return {"effective_sample_size": None, "weight_horizon": None, "warning": None}
+    ess = json_number(weights.effective_sample_size)
+    return {"effective_sample_size": ess, "weight_horizon": weights.weight_horizon, "warning": weights.warning}
 
 
 def evaluate_off_policy(

@@ -12,6 +12,7 @@ policy's oracle regret (each person's optimum, solved once and cached).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from typing import Any
 
@@ -102,11 +103,24 @@ def people_from_dict(spec: Mapping[str, Any]) -> People:
 
 
 def dataset_env_kwargs(metadata: Mapping[str, Any]) -> dict[str, Any]:
-    """The env keyword arguments of a dataset's metadata: its ``people`` and ``observe_traits``, and its
-    ``measurement`` (empty for a dataset recorded without them)."""
+    """The env keyword arguments of a dataset's metadata: the env's parameters its env spec records
+    (``max_steps``, ``heart_attack_proclivity``, ...), its ``people`` and ``observe_traits``, and its
+    ``measurement`` (empty for a dataset recorded on the env's defaults without them)."""
     spec, measured = metadata.get("people"), metadata.get("measurement")
     kwargs = people_kwargs(people_from_dict(spec), bool(metadata.get("observe_traits", False))) if spec else {}
-    return {**kwargs, **({"measurement": Measurement(**measured)} if measured else {})}
+    return {**_env_params(metadata), **kwargs, **({"measurement": Measurement(**measured)} if measured else {})}
+
+
+def _env_params(metadata: Mapping[str, Any]) -> dict[str, Any]:
+    """The env's parameters in the keyword arguments of a dataset's env spec (Minari's ``env_spec``, JSON text),
+    without the env id, people and measurement (read from their own metadata); empty where there are none."""
+    try:
+        kwargs = json.loads(metadata["env_spec"])["kwargs"]
+    except (KeyError, TypeError, ValueError):
+        return {}
+    if not isinstance(kwargs, dict):
+        return {}
+    return {k: v for k, v in kwargs.items() if k not in ("env_id", "people", "observe_traits", "measurement")}
 
 
 def people_truth_fields(

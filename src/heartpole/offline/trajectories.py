@@ -147,13 +147,34 @@ class Trajectories:
             penalty = _penalty(dataset)
         return cls(
             observations=np.stack([e.observations for e in episodes]).astype(np.float32),
-            actions=np.stack([e.actions for e in episodes]).astype(np.int64),
+            actions=_recorded_actions(str(dataset.spec.dataset_id), episodes),
             rewards=np.stack([e.rewards for e in episodes]).astype(np.float64),
             action_probabilities=np.stack([e.infos["action_probabilities"] for e in episodes]).astype(np.float64),
             **{key: np.stack([e.infos[key] for e in episodes]).astype(_INFO_DTYPES[key]) for key in INFO_KEYS},
             penalty=float(penalty),
             **_episode_people(episodes),
         )
+
+
+def _recorded_actions(dataset_id: str, episodes: Sequence[Any]) -> np.ndarray:
+    """The episodes' actions as ``(N, T)`` int64, once each is one of the env's actions (0 to the number of
+    action probabilities recorded, less one): a tampered dataset's -1 (which indexing would read as the last
+    action), 7 or 1.5 is a ``ValueError`` naming the dataset, the episode, the step and the accepted range."""
+    raw = np.stack([np.asarray(e.actions) for e in episodes])
+    num_actions = int(np.shape(episodes[0].infos["action_probabilities"])[-1])
+    if raw.dtype.kind not in "iufb" or raw.ndim != 2:
+        raise ValueError(f"dataset {dataset_id!r}: actions must be whole numbers, one per step; got {raw.dtype} "
+                         f"of shape {raw.shape}")  # fmt: skip
+    with np.errstate(invalid="ignore"):
+        valid = (raw >= 0) & (raw < num_actions) & (raw == np.floor(raw))
+    if not valid.all():
+        episode, step = (int(i) for i in np.argwhere(~valid)[0])
+        name = getattr(episodes[episode], "id", episode)
+        raise ValueError(
+            f"dataset {dataset_id!r}: episode {name}, step {step}: action {raw[episode, step].item()!r} is not one "
+            f"of the env's actions, whole numbers 0 to {num_actions - 1}"
+        )
+    return raw.astype(np.int64)
 
 
 def collect(

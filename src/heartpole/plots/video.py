@@ -59,12 +59,25 @@ def _write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> in
     except ImportError as error:
         raise ImportError('MP4 videos need imageio and imageio-ffmpeg: pip install "heartpole[plot]"') from error
     count = 0
-    with imageio.get_writer(path, format="FFMPEG", fps=fps, codec="libx264", quality=7, macro_block_size=2) as writer:
-        for frame in frames:
-            writer.append_data(frame)  # type: ignore[attr-defined]  # typed as v3's base; v2's writers have it
-            count += 1
+    options: dict[str, Any] = {"codec": "libx264", "quality": 7, "macro_block_size": 2, "ffmpeg_log_level": "quiet"}
+    try:
+        with imageio.get_writer(path, format="FFMPEG", fps=fps, **options) as writer:
+            for frame in frames:
+                writer.append_data(frame)  # type: ignore[attr-defined]  # typed as v3's base; v2's writers have it
+                count += 1
+    except OSError as error:  # ffmpeg stopped taking frames ("Broken pipe"): a full disk, or ffmpeg failed
+        first = next((line.strip() for line in str(error).splitlines() if line.strip()), type(error).__name__)
+        raise _unfinished(path, f"ffmpeg stopped after {count} frames: {first}") from None
     check_mp4(path, count)
     return count
+
+
+def _unfinished(path: str | Path, said: str) -> OSError:
+    """The error of a video ffmpeg did not finish: ``ENOSPC`` when its disk is full, else ``EIO``; ``said`` is
+    what went wrong, in words."""
+    if shutil.disk_usage(Path(path).parent).free == 0:
+        return OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (the video is incomplete: {said})", str(path))
+    return OSError(errno.EIO, f"ffmpeg did not write a whole video ({said})", str(path))
 
 
 def check_mp4(path: str | Path, count: int) -> None:
@@ -89,9 +102,7 @@ def check_mp4(path: str | Path, count: int) -> None:
         return
     last = next((line.strip() for line in reversed(run.stderr.splitlines()) if line.strip()), "no output")
     said = f"{int(found[-1])} of {count} frames readable" if run.returncode == 0 and found else f"ffmpeg: {last}"
-    if shutil.disk_usage(Path(path).parent).free == 0:
-        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (the video is incomplete: {said})", str(path))
-    raise OSError(errno.EIO, f"ffmpeg did not write a whole video ({said})", str(path))
+    raise _unfinished(path, said)
 
 
 def _write_gif(frames: Iterable[np.ndarray], path: str | Path, fps: float) -> int:

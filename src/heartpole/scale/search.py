@@ -34,6 +34,9 @@ OBJECTIVE = "objective"
 SEARCH_NAME = "search"
 SEARCH_SETTINGS_FILE = "search.json"
 """The search's settings in its folder (what a resumed search checks it continues)."""
+SEARCH_FORMAT = "heartpole-search/1"
+"""The ``format`` of the ``search.json`` this HeartPole writes and resumes (one written before the field existed,
+with the same keys, resumes too)."""
 TRIALS_FILE = "trials.csv"
 PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
@@ -131,6 +134,7 @@ class SearchSettings:
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe."""
         return {
+            "format": SEARCH_FORMAT,
             "base": self.base.to_dict(),
             "trials": self.trials,
             "seeds": list(self.seeds),
@@ -141,10 +145,34 @@ class SearchSettings:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SearchSettings:
-        """The inverse of [`to_dict`][heartpole.scale.search.SearchSettings.to_dict]."""
+        """The inverse of [`to_dict`][heartpole.scale.search.SearchSettings.to_dict].
+
+        Raises:
+            ValueError: another format than [`SEARCH_FORMAT`][heartpole.scale.search.SEARCH_FORMAT], a key
+                missing or unknown, or a value of the wrong kind, named.
+        """
+        from heartpole.parameters import check_integer
+
+        if not isinstance(data, Mapping):
+            raise ValueError(f"expected a JSON object, got {type(data).__name__}")
         values = dict(data)
-        values["base"] = training.TrainConfig.from_dict(values["base"])
-        values["seeds"] = tuple(int(s) for s in values["seeds"])
+        found = values.pop("format", SEARCH_FORMAT)
+        if found != SEARCH_FORMAT:
+            raise ValueError(f"format {found!r}, and this HeartPole resumes {SEARCH_FORMAT!r} only")
+        known = {"base", "trials", "seeds", "eval_episodes", "eval_seed", "search_seed"}
+        if set(values) - known or not {"base", "trials", "seeds"} <= set(values):
+            raise ValueError(f"keys {sorted(values)}, expected {sorted(known)}")
+        try:
+            values["base"] = training.TrainConfig.from_dict(values["base"])
+        except (TypeError, ValueError, AttributeError) as error:
+            raise ValueError(f"base: {' '.join(str(error).split())}") from None
+        if not isinstance(values["seeds"], list) or not values["seeds"]:
+            raise ValueError(f"seeds must be a list of seeds, got {values['seeds']!r}")
+        values["seeds"] = tuple(check_integer("seeds[]", seed, 0) for seed in values["seeds"])
+        values["trials"] = check_integer("trials", values["trials"], 1)
+        for key in ("eval_episodes", "eval_seed", "search_seed"):
+            if key in values:
+                values[key] = check_integer(key, values[key], 1 if key == "eval_episodes" else 0)
         return cls(**values)
 
 
@@ -179,7 +207,7 @@ def prepare_search_folder(
     Raises:
         ValueError: ``resume`` with ``force``, nothing to resume, a file in the way, a non-empty folder
             without ``force``, or with ``force`` a folder that holds no search.
-        UntrustedSearchError: ``resume`` without ``trust_pickles``; nothing from the folder was read.
+        UntrustedSearchError: ``resume`` without ``trust_pickles``; nothing from the folder was unpickled.
     """
     out = Path(folder).resolve()
     if resume:
@@ -187,6 +215,7 @@ def prepare_search_folder(
             raise ValueError("--resume continues the search in --out and --force replaces it: give one")
         if not can_resume(out):
             raise ValueError(f"--resume: no search to continue in {out}")
+        read_settings(out)  # a damaged or other-version search.json: refused before Ray starts
         if not trust_pickles:
             raise UntrustedSearchError(
                 f"--resume would unpickle {out / SEARCH_NAME / RESUME_PICKLE} (Ray Tune's saved search), which can "
@@ -206,12 +235,27 @@ def prepare_search_folder(
 
 def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:
     """The settings of the search in ``folder``; its env id must be a HeartPole id (checked before anything makes
-    it: a ``ValueError`` otherwise)."""
+    it).
+
+    Raises:
+        ValueError: a ``search.json`` that is not JSON, or not one this HeartPole writes (see
+            [`SearchSettings.from_dict`][heartpole.scale.search.SearchSettings.from_dict]), or whose env id is not
+            a HeartPole id, naming the file.
+        OSError: it cannot be read.
+    """
     path = Path(folder) / SEARCH_SETTINGS_FILE
-    data = json.loads(path.read_text())
+    try:
+        data = json.loads(path.read_text())
+    except ValueError as error:  # json.JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise ValueError(f"{path} is not the settings of a search this HeartPole can resume: "
+                         f"{' '.join(str(error).split())}") from None  # fmt: skip
     base = data.get("base") if isinstance(data, dict) else None
     check_heartpole_id(base.get("env_id", "HeartPole-v0") if isinstance(base, dict) else None, str(path))
-    return SearchSettings.from_dict(data)
+    try:
+        return SearchSettings.from_dict(data)
+    except ValueError as error:
+        raise ValueError(f"{path} is not the settings of a search this HeartPole can resume: "
+                         f"{' '.join(str(error).split())}") from None  # fmt: skip
 
 
 def tune_search(

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import functools
 import math
+import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -194,7 +196,9 @@ def check_config(config: Any) -> None:
         ValueError: naming the key (``hyperparameters.learning_rate``, ``env_kwargs``, ...), the value and what
             is accepted.
     """
-    from heartpole.registry import env_dynamics
+    import gymnasium as gym
+
+    from heartpole.registry import env_dynamics, one_line, quiet_version_warnings
 
     check_net_arch(config.net_arch)
     check_hyperparameters(config.algo, config.hyperparameters)
@@ -207,11 +211,59 @@ def check_config(config: Any) -> None:
         raise ValueError(f"reward_stats_window must be a number >= 1 or null, got {window!r}")
     if not isinstance(config.env_kwargs, Mapping):
         raise ValueError(f"env_kwargs must be an object of keyword: value, got {config.env_kwargs!r}")
+    where = f"env_kwargs {dict(config.env_kwargs)!r}" if config.env_kwargs else f"env_id {config.env_id!r}"
+    with warnings.catch_warnings():  # Gymnasium's warning about a render_mode the env refuses anyway, in words
+        warnings.filterwarnings("ignore", message=".*initialised with render_mode", category=UserWarning)
+        try:
+            env_dynamics(config.env_id, config.env_kwargs)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"{where}: {error}") from None
+        try:  # and the vector env that training steps, which refuses more (a render_mode other than rgb_array)
+            with quiet_version_warnings():
+                kwargs = dict(config.env_kwargs)
+                venv = gym.make_vec(config.env_id, 1, vectorization_mode="vector_entry_point", **kwargs)
+        except (TypeError, ValueError, gym.error.Error) as error:
+            raise ValueError(f"{where}: the vector env training steps refuses them: {one_line(error)}") from None
+    inputs = int(np.prod(venv.single_observation_space.shape or (1,)))
+    actions = int(getattr(venv.single_action_space, "n", 1))
+    venv.close()
+    check_network_memory(config.net_arch, inputs, actions)
+
+
+NETWORK_BYTES_PER_PARAMETER = 2 * 4 * 4
+"""Bytes a network's parameter costs in training, counted generously: two networks of ``net_arch`` (PPO's and
+A2C's actor and critic, DQN's Q-network and its target), each parameter with its gradient and Adam's two
+moments, all float32."""
+
+
+def check_network_memory(net_arch: Sequence[int], inputs: int, actions: int) -> int:
+    """The bytes the networks of ``net_arch`` (between ``inputs`` observations and ``actions`` outputs) take in
+    training ([`NETWORK_BYTES_PER_PARAMETER`][heartpole.training.checks.NETWORK_BYTES_PER_PARAMETER] a parameter),
+    checked against half the machine's physical memory before anything is built: a ``net_arch`` of
+    ``[1000000000]`` would take all of it, and the machine with it.
+
+    Raises:
+        ValueError: naming ``net_arch``, the memory it needs and the memory there is.
+    """
+    sizes = [inputs, *net_arch, actions + 1]  # +1: the critic's value beside the actor's logits, generously
+    parameters = sum(a * b + b for a, b in zip(sizes, sizes[1:]))
+    needed = parameters * NETWORK_BYTES_PER_PARAMETER
+    memory = physical_memory()
+    if memory is not None and needed > memory // 2:
+        raise ValueError(
+            f"net_arch {list(net_arch)} has {parameters:,} parameters per network, which training needs about "
+            f"{needed / 2**30:,.1f} GiB for; this machine has {memory / 2**30:,.1f} GiB of memory (at most half "
+            "of it may go to the networks)"
+        )
+    return needed
+
+
+def physical_memory() -> int | None:
+    """The machine's physical memory in bytes, where the platform says (``None`` elsewhere)."""
     try:
-        env_dynamics(config.env_id, config.env_kwargs)
-    except (TypeError, ValueError) as error:
-        where = f"env_kwargs {dict(config.env_kwargs)!r}" if config.env_kwargs else f"env_id {config.env_id!r}"
-        raise ValueError(f"{where}: {error}") from None
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
 
 
 __all__ = [
@@ -220,6 +272,9 @@ __all__ = [
     "check_config",
     "check_hyperparameters",
     "check_net_arch",
+    "check_network_memory",
+    "physical_memory",
+    "NETWORK_BYTES_PER_PARAMETER",
     "check_score_rate",
     "score_rate_ceiling",
 ]

@@ -18,9 +18,10 @@ from heartpole.records import SUMMARY_FILE
 def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Path:
     """Check that training may write to ``out``, before any training starts; return it as a ``Path``.
 
-    ``out`` may be missing or an empty folder. An existing non-empty folder needs ``force``, and even then
-    it must be a folder ``heartpole train`` wrote (it holds ``heartpole.json`` or ``summary.json``):
-    ``--force`` never deletes anything else.
+    ``out`` may be missing or an empty folder; a symbolic link is followed (its target is returned and
+    written, as every command's ``--out``; see [`heartpole.paths.followed`][heartpole.paths.followed]). An
+    existing non-empty folder needs ``force``, and even then it must be a folder ``heartpole train`` wrote (it
+    holds ``heartpole.json`` or ``summary.json``): ``--force`` never deletes anything else.
 
     Raises:
         FileExistsError: ``out`` is a file, or a non-empty folder without ``force``.
@@ -28,7 +29,7 @@ def check_output_folder(out: str | os.PathLike[str], force: bool = False) -> Pat
         OSError: ``out`` cannot be written (a read-only file system, no permission, a mount point: see
             [`heartpole.paths.check_writable`][heartpole.paths.check_writable]).
     """
-    out = Path(out)
+    out = paths.followed(out)  # a symbolic link: its target is the output, the link stays
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"--out {out} is a file, not a folder")
     if out.is_dir() and any(out.iterdir()):

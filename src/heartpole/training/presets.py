@@ -32,6 +32,9 @@ ScoreRate: TypeAlias = Literal["best", "auto"] | float
 """How a preset sets the shaped reward's rate: ``"best"``
 ([`RATE_SHARE_OF_BEST`][heartpole.training.presets.RATE_SHARE_OF_BEST] of the env's best known score), ``"auto"``
 (estimated while training) or the rate itself. See [`preset_config`][heartpole.training.presets.preset_config]."""
+MAX_TRAINING_SEED = 2**32 - 1
+"""The largest seed training takes: NumPy's legacy seeding (which Stable-Baselines3's ``set_random_seed`` calls)
+takes 0 to 2**32 - 1."""
 RATE_SHARE_OF_BEST = 0.98
 """The shaped reward's default rate as a share of the env's best known score: 0.32 for v0 (its tuned value),
 0.68 for v1."""
@@ -79,7 +82,8 @@ class TrainConfig:
             raise ValueError(f"unknown algorithm {self.algo!r}; choose one of {', '.join(SB3_ALGORITHMS)}")
         for name in ("timesteps", "n_envs"):
             check_integer(name, getattr(self, name), 1)
-        check_integer("seed", self.seed, 0)
+        if check_integer("seed", self.seed, 0) > MAX_TRAINING_SEED:
+            raise ValueError(f"seed must be at most {MAX_TRAINING_SEED} (2**32 - 1, NumPy's seeding), got {self.seed}")
         check_net_arch(self.net_arch)
 
     @property
