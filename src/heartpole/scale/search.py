@@ -250,7 +250,8 @@ def read_settings(folder: str | os.PathLike[str]) -> SearchSettings:
         raise ValueError(f"{path} is not the settings of a search this HeartPole can resume: "
                          f"{' '.join(str(error).split())}") from None  # fmt: skip
     base = data.get("base") if isinstance(data, dict) else None
-    check_heartpole_id(base.get("env_id", "HeartPole-v0") if isinstance(base, dict) else None, str(path))
+    if isinstance(base, dict):  # before anything reads the settings further: nothing may make a foreign id
+        check_heartpole_id(base.get("env_id", "HeartPole-v0"), str(path))
     try:
         return SearchSettings.from_dict(data)
     except ValueError as error:
