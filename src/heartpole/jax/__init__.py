@@ -3,12 +3,13 @@
 ::
 
     import jax
-    from heartpole.jax import evaluate, make
+    from heartpole.jax import LegacyStep, evaluate, make
 
     env, params = make("HeartPole-v0")
     obs, state = env.reset(jax.random.key(0), params)
     obs, state, reward, terminated, truncated, info = env.step(jax.random.key(1), state, 2, params)
     result = evaluate("expert", episodes=2000)  # heartpole.evaluate's, played on the device
+    legacy = LegacyStep(env)  # gymnax's older five-value step, for rejax: docs/rejax.md
 
 ``import heartpole`` never imports JAX; this package does.
 """
@@ -23,6 +24,7 @@ except ImportError as error:  # pragma: no cover - exercised in a subprocess wit
 
 from heartpole.jax.env import EnvParams, EnvState, HeartPoleJax, make  # noqa: E402
 from heartpole.jax.evaluation import evaluate, evaluate_batch  # noqa: E402
+from heartpole.jax.legacy import LegacyStep  # noqa: E402
 from heartpole.jax.spaces import Box, Discrete  # noqa: E402
 from heartpole.jax.traced import MODEL, RNG  # noqa: E402
 
@@ -33,6 +35,7 @@ __all__ = [
     "EnvState",
     "HeartPoleJax",
     "JAX_EXTRA",
+    "LegacyStep",
     "MODEL",
     "RNG",
     "evaluate",
