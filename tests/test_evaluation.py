@@ -282,7 +282,8 @@ def test_a_failing_optimum_fails_before_any_episode_runs(monkeypatch) -> None:
     def broken(*args: object, **kwargs: object) -> None:
         raise RuntimeError("a bug in the solver")
 
-    monkeypatch.setattr(heartpole.optimum, "optimum", broken)
+    for name in ("optimum", "optimum_for"):  # by env id, or for the Dynamics evaluate resolved
+        monkeypatch.setattr(heartpole.optimum, name, broken)
     calls: list[int] = []
     with pytest.raises(RuntimeError, match="a bug in the solver"):
         evaluate(_counting_policy(calls), episodes=2, seed=0, env_kwargs={"max_steps": 20})
@@ -296,3 +297,31 @@ def test_compare_checks_both_policies_before_running_either() -> None:
     with pytest.raises(ValueError, match="unknown policy 'no-such-policy'"):
         compare(_counting_policy(calls), "no-such-policy", episodes=2, env_kwargs={"max_steps": 20})
     assert calls == []
+
+
+def test_one_resolution_of_the_env_id_per_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`evaluate`, `compare` and `baselines` each resolve their env id to its Dynamics once, wherever a module
+    took `env_dynamics` from, and pass it down (to the policy, the optimum and the progress bar)."""
+    import sys
+
+    import heartpole.registry
+
+    original, calls = heartpole.registry.env_dynamics, []
+
+    def counting(*args: object, **kwargs: object) -> object:
+        calls.append(args)
+        return original(*args, **kwargs)  # type: ignore[arg-type]
+
+    for module in [m for name, m in sys.modules.items() if name.startswith("heartpole")]:
+        if getattr(module, "env_dynamics", None) is original:
+            monkeypatch.setattr(module, "env_dynamics", counting)
+    kwargs = {"max_steps": 800}
+    for command in (
+        lambda: evaluate("optimal", episodes=3, env_kwargs=kwargs, progress=True),
+        lambda: evaluate(ExpertPolicy(), episodes=3, env_kwargs=kwargs),
+        lambda: compare("expert", "random", episodes=3, env_kwargs=kwargs),
+        lambda: baselines(episodes=2, env_kwargs=kwargs),
+    ):
+        calls.clear()
+        command()
+        assert len(calls) == 1, calls

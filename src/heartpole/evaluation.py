@@ -30,12 +30,14 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from heartpole.dynamics import Dynamics
 from heartpole.parameters import check_integer
 from heartpole.policies import Policy, available_builtins, load_policy, policy_name
+from heartpole.registry import env_dynamics
 from heartpole.results import Comparison as Comparison
 from heartpole.results import Episodes as Episodes
 from heartpole.results import EvaluationResult as EvaluationResult
@@ -105,27 +107,56 @@ def evaluate(
     >>> result.expected_ci95[0] <= result.expected_return <= result.expected_ci95[1]
     True
     """
+    episodes, seed, chunk, env_kwargs = _checked(episodes, seed, num_envs, env_kwargs)
+    truth = people_truth(env_id, env_kwargs, show_progress=progress is True) if regret else None
+    dynamics = env_dynamics(env_id, env_kwargs)  # the one resolution of env_id: everything below takes it
+    act, name = _resolve(policy, env_id, env_kwargs, seed, dynamics)
+    return _evaluate(act, name, _Run(env_id, env_kwargs, dynamics, episodes, seed, chunk), truth, progress, regret)
+
+
+class _Run(NamedTuple):
+    """What one evaluation runs on, checked and resolved once: the env (its id, keyword arguments and
+    [`Dynamics`][heartpole.dynamics.Dynamics]), the episodes, the seed and the chunk of episodes run side by side."""
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    dynamics: Dynamics
+    episodes: int
+    seed: int
+    chunk: int
+
+
+def _checked(
+    episodes: int, seed: int, num_envs: int | None, env_kwargs: Mapping[str, Any] | None
+) -> tuple[int, int, int, dict[str, Any]]:
+    """``episodes``, ``seed``, the chunk and ``env_kwargs`` of an evaluation, checked."""
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
-    env_kwargs = dict(env_kwargs or {})
-    truth = people_truth(env_id, env_kwargs, show_progress=progress is True) if regret else None
-    act, name = _resolve(policy, env_id, env_kwargs, seed)
-    solution = optimum_or_reason(env_id, env_kwargs) if regret else None  # before the episodes: no failure loses them
+    return episodes, seed, chunk, dict(env_kwargs or {})
+
+
+def _evaluate(
+    act: Policy, name: str, run: _Run, truth: PeopleOptimum | str | None, progress: bool | Progress, regret: bool
+) -> EvaluationResult:
+    """[`evaluate`][heartpole.evaluation.evaluate] of the resolved policy ``act`` on the resolved ``run``."""
+    # solved before the episodes: no failure loses them
+    solution = optimum_or_reason(run.env_id, run.env_kwargs, run.dynamics) if regret else None
     started = time.perf_counter()
     parts = []
-    with _progress_callback(progress, f"evaluating {name}", episodes, env_id, env_kwargs) as tick:
-        for index, first in enumerate(range(0, episodes, chunk)):
-            with vector_env(env_id, env_kwargs, min(chunk, episodes - first)) as env:
-                parts.append(_run_episodes(env, act, name, chunk_seed(seed, index), tick))
+    total = run.episodes * run.dynamics.params.max_steps
+    with _progress_callback(progress, f"evaluating {name}", total) as tick:
+        for index, first in enumerate(range(0, run.episodes, run.chunk)):
+            with vector_env(run.env_id, run.env_kwargs, min(run.chunk, run.episodes - first)) as env:
+                parts.append(_run_episodes(env, act, name, chunk_seed(run.seed, index), tick))
                 max_steps = int(base_env(env).max_steps)
     return summarise(
         Episodes.concatenate(parts),
         truth,
         solution,
         policy=name,
-        env_id=env_id,
-        seed=seed,
-        num_envs=chunk,
+        env_id=run.env_id,
+        seed=run.seed,
+        num_envs=run.chunk,
         max_steps=max_steps,
         seconds=time.perf_counter() - started,
     )
@@ -146,26 +177,19 @@ def summarise(
     return result.with_regret(solution.expected_return, solution.margin)
 
 
-def optimum_or_reason(env_id: str, env_kwargs: Mapping[str, Any]) -> OptimumSolution | str:
+def optimum_or_reason(
+    env_id: str, env_kwargs: Mapping[str, Any], dynamics: Dynamics | None = None
+) -> OptimumSolution | str:
     """The optimum of the env ([`heartpole.optimum.optimum`][heartpole.optimum.solution.optimum]), or why the solver
-    does not cover it."""
-    from heartpole.optimum import NotCoveredError, optimum
+    does not cover it; ``dynamics``: the env's, where the caller resolved ``env_id`` already."""
+    from heartpole.optimum import NotCoveredError, optimum, optimum_for
 
     if env_kwargs.get("people") is not None:
         return NO_SINGLE_OPTIMUM
     try:
-        return optimum(env_id, env_kwargs)
+        return optimum(env_id, env_kwargs) if dynamics is None else optimum_for(dynamics, env_id, env_kwargs)
     except NotCoveredError as error:
         return f"the optimum is not known here ({' '.join(str(error).split())})"
-
-
-class _SharedOptions(TypedDict):
-    """The keyword arguments of [`evaluate`][heartpole.evaluation.evaluate] that
-    [`compare`][heartpole.evaluation.compare] and [`baselines`][heartpole.evaluation.baselines] pass on alike."""
-
-    num_envs: int | None
-    env_kwargs: Mapping[str, Any] | None
-    progress: bool | Progress
 
 
 def compare(
@@ -187,12 +211,12 @@ def compare(
     >>> pair.a.policy, pair.b.policy, pair.expected_difference == pair.a.expected_return - pair.b.expected_return
     ('expert', 'nothing', True)
     """
-    for policy in (policy_a, policy_b):  # both checked before either runs: a bad ``b`` cannot waste ``a``
-        _resolve(policy, env_id, dict(env_kwargs or {}), seed)
-    options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
-    a = evaluate(policy_a, env_id, episodes, seed, **options)
-    b = evaluate(policy_b, env_id, episodes, seed, **options)
-    return Comparison.of(a, b)
+    episodes, seed, chunk, kwargs = _checked(episodes, seed, num_envs, env_kwargs)
+    run = _Run(env_id, kwargs, env_dynamics(env_id, kwargs), episodes, seed, chunk)
+    # both policies resolved before either runs: a bad ``b`` cannot waste ``a``
+    resolved = [_resolve(policy, env_id, kwargs, seed, run.dynamics) for policy in (policy_a, policy_b)]
+    truth = people_truth(env_id, kwargs, show_progress=progress is True)
+    return Comparison.of(*(_evaluate(act, name, run, truth, progress, True) for act, name in resolved))
 
 
 def baselines(
@@ -208,9 +232,12 @@ def baselines(
     """Every built-in policy and each of ``extra``, evaluated alike, best expected-risk return first.
 
     ``optimal`` is left out where [`heartpole.optimum`][heartpole.optimum] does not cover the variant."""
-    policies: list[PolicyLike] = [*available_builtins(env_id, env_kwargs), *extra]
-    options: _SharedOptions = {"num_envs": num_envs, "env_kwargs": env_kwargs, "progress": progress}
-    return rank([evaluate(policy, env_id, episodes, seed, **options) for policy in policies])
+    episodes, seed, chunk, kwargs = _checked(episodes, seed, num_envs, env_kwargs)
+    run = _Run(env_id, kwargs, env_dynamics(env_id, kwargs), episodes, seed, chunk)
+    policies: list[PolicyLike] = [*available_builtins(env_id, kwargs, run.dynamics), *extra]
+    truth = people_truth(env_id, kwargs, show_progress=progress is True)
+    resolved = [_resolve(policy, env_id, kwargs, seed, run.dynamics) for policy in policies]
+    return rank([_evaluate(act, name, run, truth, progress, True) for act, name in resolved])
 
 
 def rank(results: Iterable[EvaluationResult]) -> list[EvaluationResult]:
@@ -245,11 +272,14 @@ def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick:
     )
 
 
-def _resolve(policy: PolicyLike, env_id: str, env_kwargs: dict[str, Any], seed: int) -> tuple[Policy, str]:
-    """The callable and the display name of ``policy``; a ``random`` built-in gets a generator from ``seed``."""
+def _resolve(
+    policy: PolicyLike, env_id: str, env_kwargs: dict[str, Any], seed: int, dynamics: Dynamics
+) -> tuple[Policy, str]:
+    """The callable and the display name of ``policy`` in the env of ``dynamics``; a ``random`` built-in gets a
+    generator from ``seed``."""
     if isinstance(policy, str):
         rng = policy_rng(seed)
-        return load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng), policy
+        return load_policy(policy, env_id, env_kwargs=env_kwargs, rng=rng, dynamics=dynamics), policy
     if not callable(policy):
         raise ValueError(f"policy must be a callable on observation batches or a policy name, got {policy!r}")
     return policy, policy_name(policy)
@@ -267,10 +297,9 @@ def policy_rng(seed: int, *key: int) -> np.random.Generator:
 
 
 @contextmanager
-def _progress_callback(
-    progress: bool | Progress, description: str, episodes: int, env_id: str, env_kwargs: dict[str, Any]
-) -> Iterator[Progress]:
-    """A ``tick(steps)`` callable for the run: a stderr bar for ``True``, the user's callable, or nothing."""
+def _progress_callback(progress: bool | Progress, description: str, total: int) -> Iterator[Progress]:
+    """A ``tick(steps)`` callable for a run of ``total`` env steps: a stderr bar for ``True``, the user's callable,
+    or nothing."""
     if callable(progress):
         yield progress
         return
@@ -278,9 +307,8 @@ def _progress_callback(
         yield _ignore
         return
     from heartpole.progress import Progress as Bar
-    from heartpole.registry import env_dynamics
 
-    bar = Bar(episodes * env_dynamics(env_id, env_kwargs).params.max_steps, description)
+    bar = Bar(total, description)
     try:
         yield bar.update
     finally:

@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from heartpole.dynamics import Dynamics
 from heartpole.policies.builtins import (
     BUILTIN_POLICIES,
     ConstantPolicy,
@@ -133,6 +134,7 @@ def load_policy(
     env_kwargs: Mapping[str, Any] | None = None,
     rng: np.random.Generator | int | None = None,
     trust_pickles: bool = False,
+    dynamics: Dynamics | None = None,
 ) -> Policy:
     """A built-in policy by name, or a Stable-Baselines3 model (a ``.zip`` saved by ``heartpole train``).
 
@@ -155,6 +157,9 @@ def load_policy(
         trust_pickles: read a model file by unpickling (Stable-Baselines3's ``load``, ``pickle``) where the
             safe readers refuse it. Unpickling can run any code the file's author chose: only for files you
             trust.
+        dynamics: the env's [`Dynamics`][heartpole.dynamics.Dynamics], where the caller resolved ``env_id`` and
+            ``env_kwargs`` already (default: resolved here, by
+            [`env_dynamics`][heartpole.registry.env_dynamics]).
 
     Raises:
         ValueError: unknown name, or a file that is not a usable model for this env
@@ -169,7 +174,8 @@ def load_policy(
     >>> policy(np.zeros((3, 6), dtype=np.float32))
     array([1, 1, 1])
     """
-    dynamics = env_dynamics(env_id, env_kwargs)
+    if dynamics is None:
+        dynamics = env_dynamics(env_id, env_kwargs)
     if spec == "oracle":
         return oracle_policy(env_id, env_kwargs, dynamics)
     if spec == "optimal":  # solved here, so that a refusal names this env, not v0

@@ -271,15 +271,22 @@ BUILTIN_POLICIES: Mapping[str, Callable[..., Policy]] = {
 """The built-in policies by name; each entry builds the policy for a [`Dynamics`][heartpole.dynamics.Dynamics]."""
 
 
-def available_builtins(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> list[str]:
+def available_builtins(
+    env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None, dynamics: Dynamics | None = None
+) -> list[str]:
     """The built-in policy names that can act in ``env_id``: all of them, but ``optimal`` only where
     [`heartpole.optimum`][heartpole.optimum] covers the variant (solving it once, cached), and ``oracle`` only
-    where ``env_kwargs`` give a finite cohort of ``people``."""
-    from heartpole.optimum import available, split_people
+    where ``env_kwargs`` give a finite cohort of ``people``. ``dynamics``: the env's, where the caller resolved
+    ``env_id`` already (``people`` do not change an env's dynamics)."""
+    from heartpole.optimum import NotCoveredError, available, optimum_for, split_people
 
     people, base = split_people(env_kwargs)
     names = list(BUILTIN_POLICIES)
-    if available(env_id, base) is None:
+    try:
+        covered = available(env_id, base) if dynamics is None else optimum_for(dynamics, env_id, base)
+    except NotCoveredError:
+        covered = None
+    if covered is None:
         names.remove("optimal")
     if people is None or not people.finite:
         names.remove("oracle")
