@@ -216,6 +216,22 @@ class HeartPoleVectorEnv(VectorEnv):
             raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
         return self._envs.copy()
 
+    def variable(self, name: str) -> np.ndarray:
+        """The state variable ``name`` of every env, ``(num_envs,)`` float32 (a copy): its row of `state`, without
+        copying the others."""
+        if not self._started:
+            raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
+        return self._envs[self.dynamics.names.index(name)].copy()
+
+    @property
+    def heart_attack_proclivity(self) -> np.ndarray:
+        """Each env's heart-attack proclivity, ``(num_envs,)`` float32 (a copy): the number its step multiplies the
+        sigmoid of blood pressure by, its person's with ``people``. With the blood pressure (`variable`) it gives
+        a step's risk in float64 ([`exact_risk`][heartpole.rewards.exact_risk])."""
+        if self._persons is None or self._cells is None:
+            return np.full(self.num_envs, self.dynamics.tables.heart_attack_proclivity, dtype=np.float32)
+        return self._persons.table_values(self._cells, "heart_attack_proclivity")
+
     @property
     def generators(self) -> np.ndarray:
         """The envs' generator states, ``(3, num_envs)`` uint32 (a copy; rows as [`heartpole.rng`][heartpole.rng]'s
