@@ -325,3 +325,49 @@ def test_one_resolution_of_the_env_id_per_command(monkeypatch: pytest.MonkeyPatc
         calls.clear()
         command()
         assert len(calls) == 1, calls
+
+
+# ------------------------------------------------------------------------------------------------------
+# the summed risk, in float64 (issue 42, item 5)
+
+
+def cohort_proclivity(person: np.ndarray) -> np.ndarray:
+    """Each episode's proclivity as its steps use it (float32, then float64) from its cohort index (-1: v0's)."""
+    from heartpole.people import People
+
+    members = [np.float32(m.values().get("heart_attack_proclivity", 0.5)) for m in People.resolve("default").cohort]
+    return np.array([float(np.float32(0.5)) if i < 0 else float(members[i]) for i in person])
+
+
+@pytest.mark.parametrize("env_kwargs", [{}, {"people": "default"}])
+def test_expected_risk_return_is_exact_where_blood_pressure_stays_0(env_kwargs: dict) -> None:
+    """``expert`` never drinks: every step's risk is ``proclivity * sigmoid(-6)``, and the expected-risk return is
+    ``score - 100 * max_steps * that`` to 1e-7 (the float32 risks summed put it 6.9e-6 above, on v0)."""
+    result = evaluate("expert", episodes=4, seed=0, env_kwargs=env_kwargs, regret=False)
+    assert result.drinks_per_episode == 0
+    exact = result.scores - 100.0 * result.max_steps * cohort_proclivity(result.person) / (1.0 + math.exp(6.0))
+    assert np.max(np.abs(result.expected_returns - exact)) < 1e-7
+
+
+@pytest.mark.parametrize("env_kwargs", [{"max_steps": 300}, {"max_steps": 300, "people": "default"}])
+def test_summed_risk_is_the_float64_risk_of_each_steps_state(env_kwargs: dict) -> None:
+    """With drinks (``reference``), each episode's summed risk is the model's risk of the blood pressure each step
+    left, computed in float64 (the float32 risk where an attack reset the pressure): not the float32 sum."""
+    from heartpole.evaluation import chunk_seed
+    from heartpole.policies import load_policy
+    from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
+
+    result = evaluate("reference", episodes=8, seed=0, env_kwargs=env_kwargs, regret=False)
+    assert result.drinks_per_episode >= 5
+    exact, rounded = np.zeros(8), np.zeros(8)
+    with vector_env("HeartPole-v0", env_kwargs, 8) as env:
+        act = load_policy("reference", "HeartPole-v0", env_kwargs=env_kwargs)
+        for step in episode_steps(env, chunk_seed(0, 0), policy_actions(act, "reference", env)):
+            pressure = base_env(env).state[1].astype(np.float64)
+            person = np.full(8, -1) if step.person is None else step.person
+            risk = heart_attack_risk(pressure, cohort_proclivity(person))
+            reported = step.info["heart_attack_risk"].astype(np.float64)
+            exact += np.where(step.info["heart_attack"], reported, risk)
+            rounded += reported
+    np.testing.assert_allclose(result.expected_heart_attacks, exact, rtol=1e-14)
+    assert np.max(np.abs(result.expected_heart_attacks - rounded)) > 1e-9  # the float32 sum is another number

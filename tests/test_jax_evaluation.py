@@ -241,3 +241,47 @@ def test_seeds_are_refused_and_accepted_as_numpys(seed: object) -> None:
         assert str(device.value) == str(error)
     else:
         assert evaluate("random", seed=seed, **options).seed == expected.seed
+
+
+# ------------------------------------------------------------------------------------------------------
+# the summed risk, as exact as float64's (issue 42, item 5)
+
+
+@pytest.mark.parametrize("env_kwargs", [{}, {"people": "default"}])
+def test_expected_risk_return_is_exact_where_blood_pressure_stays_0(env_kwargs: dict) -> None:
+    """``expert`` never drinks: the expected-risk return is ``score - 100 * max_steps * proclivity * sigmoid(-6)``
+    to 1e-7 (Kahan-summed float32 risks put it 2.3e-6 above, on v0), the episodes' proclivities their people's."""
+    from heartpole.people import People
+
+    result = evaluate("expert", episodes=4, seed=0, env_kwargs=env_kwargs, regret=False)
+    assert result.drinks_per_episode == 0
+    members = [np.float32(m.values().get("heart_attack_proclivity", 0.5)) for m in People.resolve("default").cohort]
+    proclivity = np.array([0.5 if i < 0 else float(members[i]) for i in result.person])
+    exact = result.scores - 100.0 * result.max_steps * proclivity / (1.0 + np.exp(6.0))
+    assert np.max(np.abs(result.expected_returns - exact)) < 1e-7
+
+
+def test_exact_sigmoid_is_float64s_to_2e_12() -> None:
+    """``exact_sigmoid``'s float32 pair is ``sigmoid(h - 6)`` computed in float64 of the float32 pressure ``h``, on
+    the table's grid, between its points, at its ends and beyond them."""
+    from heartpole.jax.evaluation import exact_sigmoid, sigmoid_table
+
+    generator = np.random.default_rng(3)
+    pressure = np.concatenate([
+        generator.uniform(0.0, 12.0, 20_000), generator.uniform(-45.0, 45.0, 5_000),
+        [0.0, 1e-30, 6.0, 1 / 512, -1 / 512, 40.0, -40.0, 40.001, -40.001, 100.0, -100.0, 39.998],
+    ]).astype(np.float32)  # fmt: skip
+    high, low = jax.jit(exact_sigmoid)(jnp.asarray(pressure), jnp.asarray(sigmoid_table()))
+    found = np.asarray(high, np.float64) + np.asarray(low, np.float64)
+    exact = 1.0 / (1.0 + np.exp(6.0 - pressure.astype(np.float64)))
+    np.testing.assert_allclose(found, exact, rtol=2e-12, atol=1e-18)  # below 1e-18: float32 pressures under -35
+
+
+@pytest.mark.parametrize("env_kwargs", [{"max_steps": 300}, {"max_steps": 300, "people": "default"}])
+def test_summed_risk_is_numpys_where_drinks_change_blood_pressure(env_kwargs: dict) -> None:
+    """With drinks (``reference``) the summed risks are NumPy's (each step's risk in float64 from its state) where
+    both engines play the same episode: up to the float32 rounding of the states (``exp`` is each backend's)."""
+    numpy = heartpole.evaluate("reference", episodes=8, seed=0, env_kwargs=env_kwargs, regret=False)
+    found = evaluate("reference", episodes=8, seed=0, env_kwargs=env_kwargs, regret=False)
+    assert numpy.drinks_per_episode >= 5 and same_episodes(numpy, found) == 1.0
+    np.testing.assert_allclose(found.expected_heart_attacks, numpy.expected_heart_attacks, rtol=1e-9)

@@ -570,3 +570,24 @@ def test_torchrls_batched_gym_wrapper_reads_the_infos(vectorization: str) -> Non
     read = {"heart_attack", "score", "action_taken"} & set(rollout["next"].keys())
     assert len(read) == (0 if vectorization.endswith("DISABLED") else 3)
     assert rollout["next", "truncated"].sum() == 8  # two episode ends for each env
+
+
+@pytest.mark.parametrize("people", [None, "default", "distribution"])
+def test_heart_attack_proclivity_is_each_envs_own(people: str | None) -> None:
+    """``heart_attack_proclivity`` is the number each env's step computes its risk with (its person's): with the
+    state, ``exact_risk`` gives the step's reported risk to float32 rounding."""
+    from heartpole.people import People, Uniform
+    from heartpole.rewards import exact_risk
+
+    population = People(heart_attack_proclivity=Uniform(0.2, 0.8)) if people == "distribution" else people
+    env = heartpole.HeartPoleVectorEnv(64, people=population)
+    env.reset(seed=5)
+    proclivity = env.heart_attack_proclivity
+    assert proclivity.dtype == np.float32 and proclivity.shape == (64,)
+    assert (people is None) == bool(np.all(proclivity == np.float32(0.5)))
+    for _ in range(50):
+        _, _, _, _, info = env.step(np.ones(64, dtype=np.int64))  # coffee: blood pressure rises
+        pressure = env.variable("hypertension")
+        assert np.array_equal(pressure, env.state[1])
+        risk = exact_risk(pressure, env.heart_attack_proclivity, info["heart_attack_risk"], info["heart_attack"])
+        np.testing.assert_allclose(risk, info["heart_attack_risk"], rtol=1e-6)

@@ -477,3 +477,18 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
 
 HeartPoleEnv = HeartPole
+
+
+def final_infos(info: dict[str, Any], obs: np.ndarray, ended: np.ndarray) -> dict[str, Any]:
+    """A vector env's SAME_STEP ``final_obs`` and ``final_info`` for the envs ``ended``, laid out as Gymnasium's vector
+    envs lay them out: an object array of the last observations (``None`` elsewhere) and the last step's
+    ``info`` arrays (0 elsewhere), each with its own mask."""
+    final_obs = np.full(len(ended), None, dtype=object)
+    for i, row in zip(np.flatnonzero(ended), np.ascontiguousarray(obs[ended])):
+        final_obs[i] = row
+    final_info: dict[str, Any] = {}
+    for key in [key for key in info if not key.startswith("_")]:  # INFO_KEYS, and the person's with people
+        where = ended.reshape((-1,) + (1,) * (info[key].ndim - 1))
+        final_info[key] = np.where(where, info[key], np.zeros((), dtype=info[key].dtype))
+        final_info["_" + key] = ended.copy()
+    return {"final_obs": final_obs, "_final_obs": ended.copy(), "final_info": final_info, "_final_info": ended.copy()}

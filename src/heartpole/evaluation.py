@@ -8,7 +8,8 @@ with a 95% interval:
   score (``work_done / time_elapsed``) minus 100 per heart attack, so its standard deviation is about
   110 from heart attacks alone: 20 episodes (the published protocol) give a standard error near 25.
 * the *expected-risk* return, the final score minus 100 times the sum of the steps' heart-attack
-  probabilities (``info["heart_attack_risk"]``). Each attack is a coin flipped with that known
+  probabilities (``info["heart_attack_risk"]``, recomputed in float64 from the state the step left:
+  [`step_risks`][heartpole.rollout.step_risks]). Each attack is a coin flipped with that known
   probability, so the sum of probabilities has the same expectation as the count of attacks (the
   difference is a martingale) but none of the coin's noise: same expected value, no bias, an interval
   hundreds of times narrower. Policies are ranked by it.
@@ -42,7 +43,7 @@ from heartpole.results import Comparison as Comparison
 from heartpole.results import Episodes as Episodes
 from heartpole.results import EvaluationResult as EvaluationResult
 from heartpole.rewards import expected_risk
-from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
+from heartpole.rollout import base_env, episode_steps, policy_actions, step_risks, vector_env
 from heartpole.solved import SOLVED_REGRET as SOLVED_REGRET
 from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 
@@ -252,11 +253,13 @@ def _run_episodes(env: VectorEnv, act: Policy, name: str, reset_seed: int, tick:
     sleeps_table = np.array([action.sleeps for action in dynamics.actions])
     returns, risks = np.zeros(size), np.zeros(size)
     attacks, drinks, sleeps = (np.zeros(size, dtype=np.int64) for _ in range(3))
+    proclivity = None  # each env's, read at the first step: an episode keeps its person
     for step in episode_steps(env, reset_seed, policy_actions(act, name, env)):
         drinks += drinks_table[step.actions]
         sleeps += sleeps_table[step.actions]
         returns += step.rewards
-        risks += step.info["heart_attack_risk"]  # float32 probabilities summed in float64
+        proclivity = base_env(env).heart_attack_proclivity if proclivity is None else proclivity
+        risks += step_risks(env, step.info, proclivity)  # each step's probability in float64, from its state
         attacks += step.info["heart_attack"]
         tick(size)
     scores = np.asarray(step.info["score"], dtype=np.float64)

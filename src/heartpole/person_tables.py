@@ -69,6 +69,18 @@ class PersonTables:
             raise RuntimeError("a person changed a number no probe of the population changed")  # never, by design
         cells[:, which] = full[:, self.positions].T
 
+    def table_values(self, cells: np.ndarray, name: str) -> np.ndarray:
+        """Each env's float32 value of the variant's table number ``name`` (a Number field of
+        [`StepTables`][heartpole.model.StepTables], ``"heart_attack_proclivity"`` say) as the loops read it: its
+        column of ``cells`` where people differ in it, else the variant's own; ``(n,)``, a new array."""
+        packed = self._base
+        column = len(kernel.TABLES.per_variable) * len(self.dynamics.variables) + kernel.TABLES.numbers.index(name)
+        key = f"p{(packed.shape[0] - 1) * packed.shape[1] + column}"
+        fields = self.overlay.dtype.fields
+        if fields is None or key not in fields:
+            return np.full(cells.shape[1], packed[-1, column], dtype=np.float32)
+        return cells[int(fields[key][1]) // 4].copy()
+
     # ----------------------------------------------------------------------------------------------------
     def _packed_one(self, params: Params) -> np.ndarray:
         """One person's packed tables, built as an env made with ``params`` builds them."""

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from typing import Any, TypeAlias
 
+import numpy as np
+
 from heartpole.model import heart_attack_risk
 from heartpole.parameters import Params
 
@@ -34,6 +36,29 @@ def expected_risk(value: Array, risk: Array, penalty: Array, baseline: Array = 0
       realized attack), less the floor of the risk (a constant per step that every policy pays).
     """
     return value - penalty * (risk - baseline)
+
+
+def exact_risk(pressure: np.ndarray, proclivity: np.ndarray, risk: np.ndarray, heart_attack: np.ndarray) -> np.ndarray:
+    """Each env's heart-attack risk of the step just taken, in float64: ``proclivity * sigmoid(hypertension - 6)``
+    at the float32 blood pressure and proclivity the step used, where the step reported ``risk`` rounded to float32
+    (and computed with float32's ``exp``).
+
+    Summed over an episode, the float32 risks drift: on v0 every step at zero blood pressure carries the same
+    rounding, and 1,000 of them put the expected-risk return 6.9e-6 above its exact value. These sum as exactly
+    as float64 does.
+
+    Args:
+        pressure: ``(n,)`` the blood pressures (hypertension) the step left, float32 (a vector env's
+            ``variable("hypertension")``).
+        proclivity: ``(n,)`` each env's proclivity (float32, as its step used it).
+        risk: ``(n,)`` the step's reported risks (``info["heart_attack_risk"]``).
+        heart_attack: ``(n,)`` the step's coins: where one fell, the attack reset blood pressure to 0 and the
+            state no longer shows the pressure the risk was computed at, so the reported risk is kept there.
+    """
+    exact = np.asarray(proclivity, dtype=np.float64) / (1.0 + np.exp(6.0 - np.asarray(pressure, dtype=np.float64)))
+    attacks = np.flatnonzero(heart_attack)  # rare: cheaper than a where over every env
+    exact[attacks] = np.asarray(risk)[attacks]
+    return exact
 
 
 def risk_floor(proclivity: float) -> float:

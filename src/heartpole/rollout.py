@@ -22,7 +22,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 import numpy as np
 
 from heartpole.dynamics import Dynamics
+from heartpole.model import HYPERTENSION
 from heartpole.policies import Policy, act_batch, quiet_version_warnings
+from heartpole.rewards import exact_risk
 
 if TYPE_CHECKING:
     from gymnasium.vector import VectorEnv
@@ -93,6 +95,17 @@ def episode_steps(env: VectorEnv, reset_seed: int, choose: Choose) -> Iterator[E
         yield EpisodeStep(t, actions, observations, rewards, info, person)
     if not np.all(truncated):
         raise RuntimeError(f"episodes did not end after max_steps={max_steps} steps")
+
+
+def step_risks(env: VectorEnv, info: Mapping[str, Any], proclivity: np.ndarray | None = None) -> np.ndarray:
+    """Each env's heart-attack risk of the step ``env`` just took (``info`` its info), in float64 from the blood
+    pressure it left ([`exact_risk`][heartpole.rewards.exact_risk]): what evaluation sums, where the float32
+    ``info["heart_attack_risk"]`` would drift by 7e-6 of return over 1,000 steps. ``proclivity``: the envs'
+    ``heart_attack_proclivity`` if already read (it changes only with a new person)."""
+    base = base_env(env)
+    proclivity = base.heart_attack_proclivity if proclivity is None else proclivity
+    pressure = base.variable(base.dynamics.names[HYPERTENSION])
+    return exact_risk(pressure, proclivity, info["heart_attack_risk"], info["heart_attack"])
 
 
 def episode_people(info: Mapping[str, Any]) -> np.ndarray | None:

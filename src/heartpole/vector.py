@@ -24,6 +24,7 @@ from heartpole.env import (
     check_render_mode,
     compiled_for,
     episode_length,
+    final_infos,
     observation_space,
 )
 from heartpole.measurement import Measurement
@@ -114,7 +115,6 @@ class HeartPoleVectorEnv(VectorEnv):
     Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
     ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
     ``env.spec.max_episode_steps`` reports the length the env truncates at.
-
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 8, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -216,6 +216,21 @@ class HeartPoleVectorEnv(VectorEnv):
             raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
         return self._envs.copy()
 
+    def variable(self, name: str) -> np.ndarray:
+        """The state variable ``name`` of every env, ``(num_envs,)`` float32: a copy of its row of `state` alone."""
+        if not self._started:
+            raise ResetNeeded("call reset() before reading the state of HeartPoleVectorEnv")
+        return self._envs[self.dynamics.names.index(name)].copy()
+
+    @property
+    def heart_attack_proclivity(self) -> np.ndarray:
+        """Each env's heart-attack proclivity, ``(num_envs,)`` float32 (a copy): the number its step multiplies the
+        sigmoid of blood pressure by, its person's with ``people``. With the blood pressure (`variable`) it gives
+        a step's risk in float64 ([`exact_risk`][heartpole.rewards.exact_risk])."""
+        if self._persons is None or self._cells is None:
+            return np.full(self.num_envs, self.dynamics.tables.heart_attack_proclivity, dtype=np.float32)
+        return self._persons.table_values(self._cells, "heart_attack_proclivity")
+
     @property
     def generators(self) -> np.ndarray:
         """The envs' generator states, ``(3, num_envs)`` uint32 (a copy; rows as [`heartpole.rng`][heartpole.rng]'s
@@ -297,7 +312,7 @@ class HeartPoleVectorEnv(VectorEnv):
         if ended is None:
             truncated = np.zeros(n, dtype=bool)
         elif self.autoreset_mode == AutoresetMode.SAME_STEP:  # the ended envs restart now
-            info.update(_final_infos(info, obs, ended))
+            info.update(final_infos(info, obs, ended))
             self._restart(ended)
             if self._seen is not None:
                 self._seen.reset(self._envs.T, ended)
@@ -478,18 +493,3 @@ def _write_reset_values(info: dict[str, Any], which: np.ndarray) -> None:
     """Put ``reset``'s info values into ``info``'s arrays for the envs ``which`` (restarted in the step)."""
     for key, value in RESET_INFO.items():
         info[key][which] = value
-
-
-def _final_infos(info: dict[str, Any], obs: np.ndarray, ended: np.ndarray) -> dict[str, Any]:
-    """SAME_STEP's ``final_obs`` and ``final_info`` for the envs ``ended``, laid out as Gymnasium's vector
-    envs lay them out: an object array of the last observations (``None`` elsewhere) and the last step's
-    ``info`` arrays (0 elsewhere), each with its own mask."""
-    final_obs = np.full(len(ended), None, dtype=object)
-    for i, row in zip(np.flatnonzero(ended), np.ascontiguousarray(obs[ended])):
-        final_obs[i] = row
-    final_info: dict[str, Any] = {}
-    for key in [key for key in info if not key.startswith("_")]:  # INFO_KEYS, and the person's with people
-        where = ended.reshape((-1,) + (1,) * (info[key].ndim - 1))
-        final_info[key] = np.where(where, info[key], np.zeros((), dtype=info[key].dtype))
-        final_info["_" + key] = ended.copy()
-    return {"final_obs": final_obs, "_final_obs": ended.copy(), "final_info": final_info, "_final_info": ended.copy()}

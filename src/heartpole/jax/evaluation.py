@@ -17,6 +17,7 @@ as ``policy(obs, decisions_left)``.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -38,7 +39,7 @@ from heartpole.evaluation import (
 from heartpole.jax.env import EnvParams, EnvState, HeartPoleJax
 from heartpole.jax.policies import Act, builtin_act
 from heartpole.jax.traced import MODEL, RNG
-from heartpole.model import TIME_ELAPSED, WORK_DONE
+from heartpole.model import HYPERTENSION, TIME_ELAPSED, WORK_DONE
 from heartpole.parameters import check_integer
 from heartpole.policies import policy_name
 from heartpole.rewards import expected_risk
@@ -55,13 +56,15 @@ JaxPolicy = Callable[..., jax.Array]
 class Start:
     """Where the episodes of an evaluation start: the NumPy evaluation's vector envs after their resets, every
     chunk's envs one after the other. ``variables`` ``(num_variables, episodes)`` float32, ``generators``
-    ``(3, episodes)`` uint32 (`heartpole.rng`'s rows), ``person`` ``(episodes,)`` int64 (-1 without people)."""
+    ``(3, episodes)`` uint32 (`heartpole.rng`'s rows), ``person`` ``(episodes,)`` int64 (-1 without people),
+    ``proclivity`` ``(episodes,)`` float32 (each episode's heart-attack proclivity, as its steps use it)."""
 
     variables: np.ndarray
     generators: np.ndarray
     person: np.ndarray
     max_steps: int
     chunk: int
+    proclivity: np.ndarray
 
     @classmethod
     def of(cls, env_id: str, env_kwargs: Mapping[str, Any], episodes: int, seed: int, chunk: int) -> Start:
@@ -73,19 +76,32 @@ class Start:
                 base = base_env(env)
                 person = episode_people(info)
                 person = np.full(env.num_envs, -1, dtype=np.int64) if person is None else person
-                parts.append((base.state, base.generators, person, int(base.max_steps)))
-        variables, generators, person, steps = zip(*parts)
-        return cls(np.concatenate(variables, 1), np.concatenate(generators, 1), np.concatenate(person), steps[0], chunk)
+                parts.append((base.state, base.generators, person, int(base.max_steps), base.heart_attack_proclivity))
+        variables, generators, person, steps, proclivity = zip(*parts)
+        return cls(
+            np.concatenate(variables, 1),
+            np.concatenate(generators, 1),
+            np.concatenate(person),
+            steps[0],
+            chunk,
+            np.concatenate(proclivity),
+        )
 
 
 class Totals(NamedTuple):
     """Per-episode sums carried through a rollout (float32 sums with Kahan's compensation, so 1,000 steps add up
-    as NumPy's float64 sums do to about 1e-6)."""
+    as NumPy's float64 sums do to about 1e-6), and the heart-attack risks summed as NumPy's evaluation sums them
+    ([`heartpole.rewards.exact_risk`][heartpole.rewards.exact_risk]), without float64: ``sigmoid(hypertension - 6)``
+    of the steps without an attack as a float32 pair (`exact_sigmoid`, summed by `_add_pair`: ``sigmoids +
+    sigmoids_low``, about 1e-13 per step), to be multiplied by the episode's proclivity in float64, and the
+    float32 risks of the steps with one (an attack resets the blood pressure the risk was computed at)."""
 
     returns: jax.Array
     returns_error: jax.Array
-    risks: jax.Array
-    risks_error: jax.Array
+    sigmoids: jax.Array
+    sigmoids_low: jax.Array
+    attack_risks: jax.Array
+    attack_risks_error: jax.Array
     attacks: jax.Array
     drinks: jax.Array
     sleeps: jax.Array
@@ -104,6 +120,68 @@ def _kahan(total: jax.Array, error: jax.Array, value: jax.Array) -> tuple[jax.Ar
     corrected = value - error
     new = total + corrected
     return new, (new - total) - corrected
+
+
+SIGMOID_GRID = 256
+"""Points of `sigmoid_table` per unit of blood pressure: steps of 1/256 keep its cubic's error near 1e-13."""
+SIGMOID_RANGE = 40
+"""`sigmoid_table` covers blood pressures in ``[-40, 40]``; beyond, float32's ``sigmoid(hypertension - 6)`` is 1
+(or below 1e-19) to far better than 1e-13."""
+SPLIT = 2**20
+"""`exact_sigmoid` splits the distance to the grid (below 2**-9) at multiples of 2**-20: 12 bits at most, whose
+product with a 12-bit coefficient float32 holds exactly."""
+
+
+def _twelve_bits(values: np.ndarray) -> np.ndarray:
+    """``values`` rounded to 12 significant bits (float64)."""
+    mantissa, exponent = np.frexp(values)
+    return np.ldexp(np.round(mantissa * 2.0**12), exponent - 12)
+
+
+@functools.lru_cache(maxsize=1)
+def sigmoid_table() -> np.ndarray:
+    """``(6, 2 * SIGMOID_RANGE * SIGMOID_GRID + 1)`` float32: at each grid point ``x`` of blood pressure,
+    ``sigmoid(x - 6)`` computed in float64 as a float32 pair (rows 0 and 1: high and low parts), its first Taylor
+    coefficient as a pair whose high part has 12 significant bits (rows 2 and 3), then the second and third
+    coefficients (rows 4 and 5)."""
+    x = np.arange(-SIGMOID_RANGE * SIGMOID_GRID, SIGMOID_RANGE * SIGMOID_GRID + 1) / SIGMOID_GRID
+    sigmoid = 1.0 / (1.0 + np.exp(6.0 - x))
+    first = sigmoid * (1.0 - sigmoid)
+    high, first_high = sigmoid.astype(np.float32), _twelve_bits(first)
+    rows = (high, sigmoid - high, first_high, first - first_high, first * (1.0 - 2.0 * sigmoid) / 2.0,
+            first * (1.0 - 6.0 * first) / 6.0)  # fmt: skip
+    return np.stack(rows).astype(np.float32)
+
+
+def exact_sigmoid(pressure: jax.Array, table: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``sigmoid(pressure - 6)`` of float32 blood pressures, to about 1e-13 without float64: a float32 pair ``(high,
+    low)``, `sigmoid_table`'s nearest point and a cubic in the exact distance ``d`` to it, whose largest part
+    (the first coefficient's high part times ``d``'s high bits) float32 holds exactly. Beyond the table, float32's
+    sigmoid and a low part of 0."""
+    scaled = jnp.round(pressure * SIGMOID_GRID)  # exact: a power of two, then a whole number
+    inside = jnp.abs(pressure) <= SIGMOID_RANGE
+    index = jnp.clip(scaled.astype(jnp.int32) + SIGMOID_RANGE * SIGMOID_GRID, 0, table.shape[1] - 1)
+    high, low, first_high, first_low, second, third = (table[row, index] for row in range(6))
+    distance = pressure - scaled / SIGMOID_GRID  # exact: the low bits of the pressure
+    near = jnp.round(distance * SPLIT) / SPLIT  # exact, and 12 bits at most
+    large = first_high * near  # exact: 12 bits times 12 bits
+    rest = first_low * near + (first_high + first_low) * (distance - near)
+    rest = rest + distance * distance * (second + distance * third)
+    total = high + large  # Knuth's two-sum: high + large is total + error exactly
+    part = total - high
+    error = (high - (total - part)) + (large - part)
+    outside = 1.0 / (1.0 + jnp.exp(6.0 - pressure))
+    return jnp.where(inside, total, outside), jnp.where(inside, error + (low + rest), jnp.float32(0.0))
+
+
+def _add_pair(high: jax.Array, low: jax.Array, value: jax.Array, value_low: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The float32 pair ``high + low`` plus the pair ``value + value_low`` (Knuth's two-sum, then renormalised)."""
+    total = high + value
+    part = total - high
+    error = (high - (total - part)) + (value - part)
+    low = low + (error + value_low)
+    new = total + low
+    return new, low - (new - total)
 
 
 def rollout(
@@ -149,15 +227,21 @@ def rollout(
         uniforms = draw(key_low, key_high, counter)
         _, state, reward, _, info = advance(key, state, actions, params, uniforms)
         returns, returns_error = _kahan(totals.returns, totals.returns_error, reward)
-        risks, risks_error = _kahan(totals.risks, totals.risks_error, info["heart_attack_risk"])
-        totals = Totals(returns, returns_error, risks, risks_error, totals.attacks + info["heart_attack"],
+        attack, zero = info["heart_attack"], jnp.float32(0.0)
+        high, low = exact_sigmoid(state.variables[HYPERTENSION], table)
+        high, low = jnp.where(attack, zero, high), jnp.where(attack, zero, low)
+        sigmoids, sigmoids_low = _add_pair(totals.sigmoids, totals.sigmoids_low, high, low)
+        risk = jnp.where(attack, info["heart_attack_risk"], zero)
+        attack_risks = _kahan(totals.attack_risks, totals.attack_risks_error, risk)
+        totals = Totals(returns, returns_error, sigmoids, sigmoids_low, *attack_risks, totals.attacks + attack,
                         totals.drinks + drinks[actions], totals.sleeps + sleeps[actions])  # fmt: skip
         return (state, counter + jnp.uint32(1), totals, check), None
 
     floats, ints = jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32)
     counter = jnp.asarray(start.generators[COUNTER])
     check = ActionCheck(jnp.bool_(False), jnp.int32(0), jnp.int32(0))
-    carry = (state, counter, Totals(floats, floats, floats, floats, ints, ints, ints), check)
+    table = jnp.asarray(sigmoid_table())
+    carry = (state, counter, Totals(floats, floats, floats, floats, floats, floats, ints, ints, ints), check)
     (state, _, totals, check), _ = jax.lax.scan(step, carry, jnp.arange(start.max_steps, dtype=jnp.int32))
     return totals, MODEL.score(state.variables[WORK_DONE], state.variables[TIME_ELAPSED]), check
 
@@ -299,7 +383,7 @@ def evaluate_batch(
     results = []
     for i, label in enumerate(labels):
         score = np.asarray(scores[i], dtype=np.float64)
-        risks = np.asarray(totals.risks[i], dtype=np.float64)
+        risks = episode_risks(totals, i, start.proclivity)
         found = Episodes(
             returns=np.asarray(totals.returns[i], dtype=np.float64),
             expected_returns=expected_risk(score, risks, penalty),
@@ -313,3 +397,11 @@ def evaluate_batch(
         about = {"policy": label, "env_id": env_id, "seed": seed, "num_envs": chunk, "max_steps": start.max_steps}
         results.append(summarise(found, truth, solution, seconds=seconds, **about))
     return results
+
+
+def episode_risks(totals: Totals, i: int, proclivity: np.ndarray) -> np.ndarray:
+    """The summed heart-attack risks of the episodes of policy ``i`` of ``totals``, in float64: the proclivity
+    times the summed sigmoids, and the risks of the steps with an attack."""
+    sigmoids = np.asarray(totals.sigmoids[i], dtype=np.float64) + np.asarray(totals.sigmoids_low[i], dtype=np.float64)
+    attacks = np.asarray(totals.attack_risks[i], dtype=np.float64)
+    return np.asarray(proclivity, dtype=np.float64) * sigmoids + attacks

@@ -19,7 +19,7 @@ from heartpole.parameters import check_integer
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.reporting import plus_minus
 from heartpole.rewards import expected_risk
-from heartpole.rollout import base_env, episode_steps, policy_actions, vector_env
+from heartpole.rollout import base_env, episode_steps, policy_actions, step_risks, vector_env
 from heartpole.stats import confidence_interval
 
 DEFAULT_GAMMA = 0.95
@@ -130,11 +130,11 @@ def _run(
     discount = 1.0
     with vector_env(env_id, env_kwargs, episodes) as env:
         penalty = float(base_env(env).dynamics.params.heart_attack_penalty)
+        proclivity = None  # each env's, read at the first step: an episode keeps its person
         for step in episode_steps(env, chunk_seed(seed, 0), policy_actions(act, name, env)):
+            proclivity = base_env(env).heart_attack_proclivity if proclivity is None else proclivity
             reward, coin = step.rewards, np.asarray(step.info["heart_attack"], dtype=np.float64)
-            expected = expected_risk(
-                reward, np.asarray(step.info["heart_attack_risk"], dtype=np.float64), penalty, coin
-            )
+            expected = expected_risk(reward, step_risks(env, step.info, proclivity), penalty, coin)
             sums["value"] += discount * expected
             sums["realized_value"] += discount * reward
             sums["expected_return"] += expected
