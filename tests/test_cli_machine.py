@@ -8,16 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from heartpole.cli import main
+from tests.test_cli_one_line import one_line
 
 pytest.importorskip("stable_baselines3")
-
-
-def _one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1, err
-    return err
 
 
 @pytest.mark.parametrize("command", ["train", "tune"])
@@ -27,7 +20,7 @@ def test_more_cpus_per_trial_than_the_machine_has_is_refused(capsys, monkeypatch
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
     out = str(tmp_path / "o")
     extra = ["--seeds", "0-1", "--ray"] if command == "train" else ["--trials", "1"]
-    err = _one_line(capsys, [command, *extra, "--cpus-per-trial", "1000", "--timesteps", "64", "--out", out])
+    err = one_line(capsys, [command, *extra, "--cpus-per-trial", "1000", "--timesteps", "64", "--out", out])
     assert "--cpus-per-trial 1000: this machine has 2 CPUs" in err and "give at most 2" in err
     assert not (tmp_path / "o").exists()
 
@@ -53,7 +46,7 @@ def test_a_network_larger_than_the_memory_is_refused_before_it_is_built(capsys, 
 
     preset = tmp_path / "p.json"
     save_preset(replace(preset_config(), net_arch=(10**9,), timesteps=64, n_envs=2), preset)
-    err = _one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
+    err = one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
     assert "net_arch [1000000000] has 12,000,000,005 parameters per network" in err and "GiB of memory" in err
     assert not (tmp_path / "o").exists()
 

@@ -18,7 +18,8 @@ from heartpole.cli import main
 pytest.importorskip("stable_baselines3")
 
 
-def _one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
+def one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
+    """Run the CLI with ``argv``: exit 2 and exactly one line on stderr, which is returned."""
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1, err
@@ -29,9 +30,7 @@ def _one_line(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
     ("option", "value"), [("--seed", "4294967296"), ("--seeds", "4294967290-4294967296"), ("--seed", "99999999999999")]
 )
 def test_train_refuses_seeds_training_cannot_use(capsys, tmp_path: Path, option: str, value: str) -> None:
-    err = _one_line(
-        capsys, ["train", option, value, "--timesteps", "64", "--n-envs", "2", "--out", str(tmp_path / "o")]
-    )
+    err = one_line(capsys, ["train", option, value, "--timesteps", "64", "--n-envs", "2", "--out", str(tmp_path / "o")])
     assert f"{option}: a training seed is a whole number from 0 to 4,294,967,295" in err
     assert not (tmp_path / "o").exists()
 
@@ -50,7 +49,7 @@ def _small_files(limit: int) -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
 
-def test_a_long_mp4_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
+def test_a_long_mp4_that_cannot_be_written_isone_line(tmp_path: Path) -> None:
     pytest.importorskip("imageio_ffmpeg")
     target = tmp_path / "out" / "x.mp4"
     result = subprocess.run(
@@ -73,6 +72,6 @@ def test_a_preset_render_mode_training_cannot_use_is_refused_up_front(capsys, tm
 
     preset = tmp_path / "p.json"
     save_preset(replace(preset_config(), env_kwargs={"render_mode": mode}, timesteps=64, n_envs=2), preset)
-    err = _one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
+    err = one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
     assert f"env_kwargs {{'render_mode': '{mode}'}}" in err and "render_mode must be None or one of" in err
     assert not (tmp_path / "o").exists()
