@@ -19,8 +19,8 @@ if [[ ",$extras," =~ ,(all|train|ray|test), ]]; then  # the extras that bring St
   .venv/bin/python -m pip install -q torch==2.13.0
 fi
 .venv/bin/python -m pip install -q -e ".[$extras]"
-# Compile the steps once into numba's disk cache (beside the sources), as pip compiles .pyc files: test
-# workers and the first commands then load them instead of each compiling the same code (seconds each).
+# Compile the steps and the optimum's history program once into numba's disk cache (beside the sources), as pip
+# compiles .pyc files: test workers and the first commands then load them instead of each compiling the same code.
 .venv/bin/python -W ignore -c '
 import warnings, gymnasium as gym, heartpole
 warnings.simplefilter("ignore")  # after gymnasium, which sets its own filters: v0 is "out of date"
@@ -29,4 +29,7 @@ for env_id in ("HeartPole-v0", "HeartPole-v1"):
         for env in (gym.make(env_id, people=people), gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", people=people)):
             env.reset(seed=0)
             env.step(env.action_space.sample())
+from heartpole.optimum import solve_history
+from heartpole.parameters import Params
+solve_history(Params(max_steps=40), grid=4, points=3, policy=False)  # the history program (half a minute to compile)
 '
