@@ -18,7 +18,12 @@ from tests.signal_dispositions import SIGNALS, as_in_a_terminal
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 
-@pytest.mark.parametrize("signum", SIGNALS, ids=[s.name for s in SIGNALS])
+@pytest.mark.parametrize(
+    "signum",
+    # SIGTERM in the default suite; the others (the same path, seconds each) with the slow tests
+    [s if s == signal.SIGTERM else pytest.param(s, marks=pytest.mark.slow) for s in SIGNALS],
+    ids=[s.name for s in SIGNALS],
+)
 def test_a_long_solve_ends_within_a_second_of_a_signal(tmp_path: Path, signum: signal.Signals) -> None:
     """A billion-decision horizon spends minutes in numba's loop over the episode's decisions (13 minutes
     deaf to SIGTERM before): the signal ends it with 128 + n at once, leaving the cache as it was."""
