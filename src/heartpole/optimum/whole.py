@@ -29,6 +29,7 @@ figures move when the region or the grids are widened, as the sleep-timing progr
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -89,8 +90,7 @@ class HistoryOptimum:
         obs = np.asarray(obs, dtype=np.float64)
         n = np.asarray(decisions_left, dtype=np.int64)
         params = self.params
-        awake = max_awake(params)
-        drained = _DayModel(params, 1).drained
+        awake, drained = self._day
         t = np.minimum(obs[:, 3].round().astype(np.int64), awake - 1)
         if params.sleep_half_hours:
             sleeps = np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
@@ -102,6 +102,12 @@ class HistoryOptimum:
         worked = productivity(w[:, None] - drained[columns], 0.0)
         later = obs[:, 5, None] + np.concatenate([np.zeros((len(w), 1)), np.cumsum(worked, axis=1)], axis=1)
         return _greedy(later, t, n, sleeps, params.max_steps, params.sleep_half_hours, awake, *self._tables())
+
+    @functools.cached_property
+    def _day(self) -> tuple[int, np.ndarray]:
+        """Half-hours awake after which a day always sleeps, and the alertness drained after each: worked out once,
+        not at every decision."""
+        return max_awake(self.params), _DayModel(self.params, 1).drained
 
     def _tables(self) -> tuple[Any, ...]:
         return (
