@@ -220,6 +220,9 @@ def test_check_writable_passes_where_a_folder_can_be_written(tmp_path: Path) -> 
     with pytest.raises(OSError) as raised:
         paths.check_writable(tmp_path / ("x" * 300))
     assert raised.value.errno == errno.ENAMETOOLONG
+    # a name that is not UTF-8 (a legal Linux name: Python holds its byte as a surrogate) is written as it is
+    odd = tmp_path / os.fsdecode(b"bad\xff")
+    assert paths.check_writable(odd / "x.json") == odd / "x.json"
 
 
 # ------------------------------------------------------------------------------------------------------

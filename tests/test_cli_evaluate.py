@@ -91,12 +91,20 @@ def test_baselines_writes_markdown_and_csv(tmp_path: Path) -> None:
         (["evaluate", "--policy", str(Path(__file__).parent)], ["is a folder"]),
         (["evaluate", "--policy", "expert", "--episodes", "0"], ["--episodes"]),
         (["evaluate", "--policy", "expert", "--seed", "-3"], ["--seed"]),
-        (["evaluate", "--policy", "expert", "--env", "NoSuchPole-v0"], ["unknown env 'NoSuchPole-v0'"]),
+        (["evaluate", "--policy", "expert", "--env", "NoSuchPole-v0"], ["'NoSuchPole-v0' is not a HeartPole env"]),
         (["compare", "--policy", "expert"], ["exactly two --policy"]),
     ],
 )
 def test_bad_input_gives_one_clear_line(args: list[str], fragments: list[str]) -> None:
     assert_one_line_error(heartpole(*args), *fragments)
+
+
+def test_a_module_env_id_on_the_command_line_imports_nothing(tmp_path: Path) -> None:
+    # Gymnasium imports the module of a "module:Name-v0" id, and `python -m` puts the current folder on the path
+    (tmp_path / "evilmod.py").write_text("open('imported', 'w').close()\n")
+    result = heartpole("evaluate", "--policy", "expert", "--env", "evilmod:HeartPole-v0", cwd=tmp_path)
+    assert_one_line_error(result, "'evilmod:HeartPole-v0' is not a HeartPole env", "nothing was imported")
+    assert not (tmp_path / "imported").exists()
 
 
 def test_corrupt_model_and_bad_output_folder(tmp_path: Path) -> None:

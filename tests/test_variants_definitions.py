@@ -84,8 +84,9 @@ BAD_DEFINITIONS = [
     # parameters
     ({"heart_attack_proclivity": 1.5}, r"heart_attack_proclivity must be a finite number in \[0.0, 1.0\]"),
     ({"heart_attack_proclivity": -0.1}, "heart_attack_proclivity"),
-    ({"max_steps": 0}, "max_steps must be an integer >= 1"),
-    ({"max_steps": 10.5}, "max_steps must be an integer >= 1"),
+    ({"max_steps": 0}, r"max_steps must be an integer in \[1, 9,007,199,254,740,992\]"),
+    ({"max_steps": 10**20}, r"max_steps must be an integer in \[1, 9,007,199,254,740,992\], got 100000000000000000000"),
+    ({"max_steps": 10.5}, r"max_steps must be an integer in \[1, 9,007,199,254,740,992\]"),
     ({"decay_rate": 0.0}, r"decay_rate must be a finite number in \(0.0, 1.0\]"),
     ({"decay_rate": 1.2}, "decay_rate"),
     ({"sleep_half_hours": -1}, "sleep_half_hours must be an integer >= 0"),

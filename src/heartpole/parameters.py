@@ -17,6 +17,10 @@ import numpy as np
 
 from heartpole.model import kept_by_the_step
 
+MAX_STEPS = 2**53
+"""The longest episode ``max_steps`` may ask for: the largest count a float64 holds exactly (the solver and the
+rates count time in float64; the step counters are 64-bit integers)."""
+
 
 @dataclass(frozen=True)
 class Params:
@@ -40,7 +44,7 @@ class Params:
 
     def __post_init__(self) -> None:
         check_number("heart_attack_proclivity", self.heart_attack_proclivity, 0.0, 1.0)
-        check_integer("max_steps", self.max_steps, 1)
+        check_integer("max_steps", self.max_steps, 1, MAX_STEPS)
         check_number("decay_rate", self.decay_rate, 0.0, 1.0, low_open=True)
         check_integer("sleep_half_hours", self.sleep_half_hours, 0)
         check_number("heart_attack_penalty", self.heart_attack_penalty, 0.0, math.inf)
@@ -96,10 +100,13 @@ def check_keywords(function: str, given: Iterable[str], accepted: Iterable[str])
         )
 
 
-def check_integer(name: str, value: Any, minimum: int) -> int:
-    """``value`` as an int, or ``ValueError`` naming ``name`` unless it is an integer (not a bool) >= ``minimum``."""
-    if not (is_number(value) and isinstance(value, (int, np.integer)) and value >= minimum):
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
+    """``value`` as an int, or ``ValueError`` naming ``name`` unless it is an integer (not a bool) >= ``minimum``
+    (and <= ``maximum`` where given)."""
+    integer = is_number(value) and isinstance(value, (int, np.integer))
+    if not (integer and value >= minimum and (maximum is None or value <= maximum)):
+        bounds = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum:,}]"
+        raise ValueError(f"{name} must be an integer {bounds}, got {value!r}")
     return int(value)
 
 

@@ -60,8 +60,8 @@ def check_writable(target: PathLike) -> Path:
     missing = target.parts[len(folder.parts) :] if target.parts[: len(folder.parts)] == folder.parts else ()
     for n, part in enumerate(missing or (target.name,)):
         longest = _name_max(folder) - (TEMPORARY_ROOM if n == len(missing) - 1 or not missing else 0)
-        if len(part.encode()) > longest:
-            reason = f"a name too long ({len(part.encode())} bytes; at most {longest} here)"
+        if len(os.fsencode(part)) > longest:
+            reason = f"a name too long ({len(os.fsencode(part))} bytes; at most {longest} here)"
             raise OSError(errno.ENAMETOOLONG, reason, name)
     try:
         probe = tempfile.mkdtemp(prefix=".heartpole-probe.", dir=folder)

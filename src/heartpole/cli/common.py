@@ -219,3 +219,14 @@ def one_line_error(parser: argparse.ArgumentParser, message: str) -> NoReturn:
     Install with ``parser.error = types.MethodType(one_line_error, parser)``."""
     print(f"{parser.prog}: error: {message} (see {parser.prog} --help)", file=sys.stderr)
     raise SystemExit(2)
+
+
+def env_id_type(text: str) -> str:
+    """``--env``'s value if it is a HeartPole id: a ``module:Name-v0`` id would make Gymnasium import ``module``
+    (from the current folder too), so the command line takes HeartPole's ids only (the Python API takes any)."""
+    from heartpole.registry import check_heartpole_id  # Gymnasium's registry: imported when an --env is given
+
+    try:
+        return check_heartpole_id(text, "--env")
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix("--env: ")) from None

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from heartpole.cli.common import CommandError, error_line
+from heartpole.cli.common import CommandError, env_id_type, error_line
 
 DEFAULT_ENV = "HeartPole-v0"
 ENV_KWARGS_HELP = (
@@ -31,6 +31,7 @@ def add_env_options(parser: argparse.ArgumentParser, *, kwargs: bool = True) -> 
     parser.add_argument(
         "--env",
         default=None,
+        type=env_id_type,
         metavar="ID",
         help=f"env id (default: the env a model's folder records, else {DEFAULT_ENV}); wins over the record",
     )

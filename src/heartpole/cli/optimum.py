@@ -13,6 +13,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     at_least,
+    env_id_type,
     error_line,
     format_table,
     output_files,
@@ -57,7 +58,9 @@ def register(subparsers: Subparsers) -> None:
         epilog="examples:\n  heartpole optimum\n  heartpole optimum --param heart_attack_proclivity=0.8 --out opt/\n"
         "  heartpole optimum --grid 800 --check 0 --json\n  heartpole optimum --people default",
     )
-    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
+    parser.add_argument(
+        "--env", default="HeartPole-v0", type=env_id_type, metavar="ID", help="env id (default: HeartPole-v0)"
+    )
     parser.add_argument(
         "--param",
         action="append",

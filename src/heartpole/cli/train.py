@@ -23,6 +23,7 @@ from heartpole.cli.common import (
     CommandError,
     Subparsers,
     add_people_arguments,
+    env_id_type,
     error_line,
     format_table,
     not_empty,
@@ -111,7 +112,9 @@ def register(subparsers: Subparsers) -> None:
         metavar="NAME",
         help="default, tutorial, or a preset file (.json) such as 'heartpole tune' writes (default: default)",
     )
-    parser.add_argument("--env", metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)")
+    parser.add_argument(
+        "--env", type=env_id_type, metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)"
+    )
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",

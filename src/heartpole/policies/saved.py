@@ -342,7 +342,10 @@ def _sidecar_record(path: Path) -> dict[str, Any] | None:
         return None  # the record of another model in the same folder
     digest = record.get("model_sha256")
     if digest is not None and file_sha256(path) != digest:
-        return None
+        raise ValueError(
+            f"{path} changed since {sidecar} recorded it (its SHA-256 differs), so its recorded statistics and env "
+            f"may not fit it; to play it as a plain Stable-Baselines3 model, move it to a folder of its own"
+        )
     return record
 
 
