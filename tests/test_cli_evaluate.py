@@ -107,6 +107,23 @@ def test_a_module_env_id_on_the_command_line_imports_nothing(tmp_path: Path) -> 
     assert not (tmp_path / "imported").exists()
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_full_or_closed_standard_output_is_one_line_or_quiet() -> None:
+    command = [sys.executable, "-m", "heartpole", "evaluate", "--policy", "expert", "--episodes", "4"]
+    with open("/dev/full", "w") as full:
+        result = subprocess.run(command, stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert result.stderr.strip().splitlines()[-1] == (
+        "heartpole evaluate: error: cannot write the standard output: No space left on device"
+    )
+    # `heartpole evaluate | head -0`: the reader left before the table was written
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert process.stdout is not None
+    process.stdout.close()
+    _, errors = process.communicate(timeout=300)
+    assert process.returncode == 0 and "Traceback" not in errors, errors
+
+
 def test_corrupt_model_and_bad_output_folder(tmp_path: Path) -> None:
     corrupt = tmp_path / "model.zip"
     corrupt.write_bytes(b"\x00garbage")

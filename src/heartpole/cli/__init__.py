@@ -156,6 +156,16 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
         print(f"heartpole {args.command}: error: {error}", file=sys.stderr)
         return 2
     except OSError as error:
+        if error.filename is None and error.errno in (errno.EPIPE, *WRITE_ERRORS):
+            # the standard output: `heartpole evaluate | head` (the reader left: nothing more to say, exit 0) or
+            # `> /dev/full`
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet
+            if error.errno == errno.EPIPE:
+                return 0
+            print(
+                f"heartpole {args.command}: error: cannot write the standard output: {error.strerror}", file=sys.stderr
+            )
+            return 2
         if error.errno not in WRITE_ERRORS or error.filename is None:
             raise
         # A full disk or a read-only file system met while writing: heartpole.files removed what it had
@@ -163,9 +173,6 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
         verb = "cannot write " if error.errno in ONLY_WRITES_FAIL_SO else ""
         print(f"heartpole {args.command}: error: {verb}{paths.describe_error(error)}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # e.g. `heartpole evaluate | head`: the reader left, nothing more to say
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - keeps Python's exit flush quiet
-        return 0
 
 
 def _command_modules() -> list[ModuleType]:
