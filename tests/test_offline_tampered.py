@@ -3,6 +3,7 @@ are refused in one line naming the dataset, the episode, the step and the accept
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -48,3 +49,33 @@ def test_actions_that_are_not_whole_numbers_are_refused(recorded: Path) -> None:
 def test_an_untouched_dataset_reads_back(recorded: Path) -> None:
     trajectories = datasets.load_trajectories(DATASET)
     assert trajectories.actions.shape == (3, 20) and trajectories.actions.min() >= 0
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("observations", float("nan")), ("rewards", float("inf")), ("infos/action_probabilities", float("nan"))],
+)
+def test_a_number_that_is_not_finite_is_refused(recorded: Path, capsys, field: str, value: float) -> None:
+    with h5py.File(recorded, "r+") as data:
+        data["episode_0"][field][2] = value  # FQE and DR printed nan (a NaN propensity went unseen) with exit 0
+    assert main(["ope", "--dataset", DATASET, "--policy", "expert", "--truth-episodes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert f"dataset '{DATASET}': episode 0, step 2: {field.split('/')[-1]} holds" in err
+    assert "every recorded number must be finite" in err
+
+
+def test_a_damaged_dataset_is_one_line(recorded: Path, capsys) -> None:
+    with h5py.File(recorded, "r+") as data:
+        del data["episode_0"]  # was a KeyError traceback
+    assert main(["ope", "--dataset", DATASET, "--policy", "expert", "--truth-episodes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert f"dataset '{DATASET}' cannot be read (damaged" in err
+
+
+def test_a_dataset_file_that_is_not_a_regular_file_is_refused_without_waiting(recorded: Path, capsys) -> None:
+    recorded.unlink()
+    os.mkfifo(recorded)  # the HDF5 reader blocked on it forever
+    assert main(["ope", "--dataset", DATASET, "--policy", "expert", "--truth-episodes", "2"]) == 2
+    assert f"{recorded} is not a regular file" in capsys.readouterr().err

@@ -51,7 +51,7 @@ from heartpole.offline.population import (
     person_infos,
 )
 from heartpole.offline.recorded import check_dataset_env, minari_env_options, recorded_metadata, recorded_spec
-from heartpole.offline.trajectories import INFO_KEYS, Trajectories, iter_collect
+from heartpole.offline.trajectories import INFO_KEYS, UNREADABLE, Trajectories, iter_collect, unreadable
 from heartpole.parameters import check_integer
 from heartpole.people import People
 from heartpole.policies import Policy, load_policy, policy_name
@@ -443,8 +443,14 @@ def load_local(target_id: str) -> MinariDataset:
         listing = ", ".join(known) if known else "none; record one with 'heartpole dataset'"
         raise ValueError(f"unknown dataset id {target_id!r} in {_root()}; local datasets: {listing}")
     check_dataset_env(metadata)
-    with quiet_version_warnings():
-        return minari.load_dataset(target_id)
+    for stored in metadata.parent.iterdir():
+        if not stored.is_file():  # a FIFO or a device would block the HDF5 reader or feed it forever
+            raise ValueError(f"dataset {target_id!r}: {stored} is not a regular file")
+    try:
+        with quiet_version_warnings():
+            return minari.load_dataset(target_id)
+    except UNREADABLE as error:
+        raise unreadable(target_id, error) from None
 
 
 def load_trajectories(target_id: str) -> Trajectories:

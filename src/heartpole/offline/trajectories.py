@@ -132,6 +132,16 @@ class Trajectories:
         Raises:
             ValueError: if the dataset lacks HeartPole's infos or its episodes differ in length.
         """
+        name = str(dataset.spec.dataset_id)
+        try:
+            return cls._from_dataset(dataset, penalty)
+        except UNREADABLE as error:
+            if isinstance(error, ValueError) and str(error).startswith(f"dataset {name!r}"):
+                raise  # already says what is wrong with it
+            raise unreadable(name, error) from None
+
+    @classmethod
+    def _from_dataset(cls, dataset: MinariDataset, penalty: float | None) -> Trajectories:
         episodes = list(dataset.iterate_episodes())
         if not episodes:
             raise ValueError(f"dataset {dataset.spec.dataset_id!r} has no episodes")
@@ -145,15 +155,40 @@ class Trajectories:
             raise ValueError(f"dataset {dataset.spec.dataset_id!r} has episodes of different lengths")
         if penalty is None:
             penalty = _penalty(dataset)
-        return cls(
-            observations=np.stack([e.observations for e in episodes]).astype(np.float32),
-            actions=_recorded_actions(str(dataset.spec.dataset_id), episodes),
-            rewards=np.stack([e.rewards for e in episodes]).astype(np.float64),
-            action_probabilities=np.stack([e.infos["action_probabilities"] for e in episodes]).astype(np.float64),
+        numbers: dict[str, np.ndarray] = {
+            "observations": np.stack([e.observations for e in episodes]).astype(np.float32),
+            "rewards": np.stack([e.rewards for e in episodes]).astype(np.float64),
+            "action_probabilities": np.stack([e.infos["action_probabilities"] for e in episodes]).astype(np.float64),
             **{key: np.stack([e.infos[key] for e in episodes]).astype(_INFO_DTYPES[key]) for key in INFO_KEYS},
+        }
+        for key, values in numbers.items():
+            _check_finite(str(dataset.spec.dataset_id), key, values)
+        return cls(
+            actions=_recorded_actions(str(dataset.spec.dataset_id), episodes),
+            **numbers,
             penalty=float(penalty),
             **_episode_people(episodes),
         )
+
+
+UNREADABLE = (KeyError, AssertionError, MemoryError, OSError, TypeError, ValueError)
+"""What Minari and h5py raise reading a damaged dataset: a missing group, a metadata type Minari asserts, a
+count that asks for more memory than there is, a truncated file."""
+
+
+def unreadable(dataset_id: str, error: BaseException) -> ValueError:
+    """A one-line ``ValueError`` for the dataset ``dataset_id`` that ``error`` stopped from being read."""
+    reason = " ".join(str(error).split()) or type(error).__name__
+    return ValueError(f"dataset {dataset_id!r} cannot be read (damaged, or not a dataset 'heartpole dataset' "
+                      f"wrote): {reason}")  # fmt: skip
+
+
+def _check_finite(dataset_id: str, name: str, values: np.ndarray) -> None:
+    """``ValueError`` naming the dataset, the field, the episode and the step of a NaN or infinite number."""
+    if values.dtype.kind == "f" and not np.isfinite(values).all():
+        where = np.argwhere(~np.isfinite(values))[0]
+        raise ValueError(f"dataset {dataset_id!r}: episode {where[0]}, step {where[1]}: {name} holds "
+                         f"{values[tuple(where)].item()!r}; every recorded number must be finite")  # fmt: skip
 
 
 def _recorded_actions(dataset_id: str, episodes: Sequence[Any]) -> np.ndarray:
