@@ -237,6 +237,20 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     return paths
 
 
+def test_a_model_zip_that_unpacks_too_large_is_refused_before_it_is_read(models, monkeypatch, tmp_path) -> None:
+    from heartpole.policies import rebuild
+
+    (tmp_path / "m.zip").write_bytes(models["ppo"].read_bytes())
+    with zipfile.ZipFile(tmp_path / "m.zip") as archive:
+        size = archive.getinfo("data").file_size
+    monkeypatch.setattr(rebuild, "MAX_MEMBER_BYTES", size - 1)  # as a zip bomb's entry against the real limit
+    read = []
+    monkeypatch.setattr(zipfile.ZipFile, "read", lambda *args: read.append(args))
+    with pytest.raises(ValueError, match=rf"its data would unpack to {size:,} bytes, more than the {size - 1:,}"):
+        load_policy(str(tmp_path / "m.zip"))
+    assert read == []
+
+
 @pytest.mark.parametrize("name", ["ppo", "a2c", "dqn"])
 def test_models_load_with_their_algorithm_and_act_deterministically(models: dict[str, Path], name: str) -> None:
     import stable_baselines3 as sb3

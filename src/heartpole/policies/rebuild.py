@@ -28,16 +28,41 @@ if TYPE_CHECKING:
     import torch
 
 
+MAX_MEMBER_BYTES = 1 << 30
+"""The largest file a model zip may unpack to (1 GiB): HeartPole's models are kilobytes to megabytes, and a zip
+whose small entry unpacks to gigabytes would take the memory before anything could check it."""
+
+
+def read_member(path: Path, member: str) -> bytes:
+    """The bytes of ``member`` of the zip at ``path``, once its declared size is at most
+    [`MAX_MEMBER_BYTES`][heartpole.policies.rebuild.MAX_MEMBER_BYTES] (``zipfile`` reads no more than it declares).
+
+    Raises:
+        ValueError: not a zip, no such member, or a member too large.
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            size = archive.getinfo(member).file_size
+            if size > MAX_MEMBER_BYTES:
+                raise ValueError(
+                    f"{path}: its {member} would unpack to {size:,} bytes, more than the {MAX_MEMBER_BYTES:,} a "
+                    "model may take"
+                )
+            return archive.read(member)
+    except (zipfile.BadZipFile, KeyError, OSError) as error:
+        raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({one_line(error)})") from None
+
+
 def model_data(path: Path) -> dict[str, Any]:
     """The JSON ``data`` of an SB3 model zip, as plain JSON (its pickled entries stay base64 text).
 
     Raises:
         ValueError: not a zip with a JSON object as its ``data``.
     """
+    raw = read_member(path, "data")
     try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as error:
+        data = json.loads(raw)
+    except ValueError as error:
         raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({one_line(error)})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path}: not a Stable-Baselines3 model zip (its data is not a JSON object)")
@@ -125,11 +150,7 @@ def read_weights(path: Path, member: str = "policy.pth") -> dict[str, torch.Tens
     """
     import torch
 
-    try:
-        with zipfile.ZipFile(path) as archive:
-            raw = archive.read(member)
-    except (zipfile.BadZipFile, KeyError, OSError) as error:
-        raise ValueError(f"{path}: not a Stable-Baselines3 model zip ({one_line(error)})") from None
+    raw = read_member(path, member)
     try:
         state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as error:
