@@ -97,7 +97,12 @@ def _register_baselines(subparsers: Subparsers) -> None:
     )
     parser.add_argument("--policy", action="append", default=[], metavar="P", help="an extra policy or model")
     _add_run_options(parser)
-    parser.add_argument("--out", default="results", metavar="DIR", help="folder for baselines.md and .csv")
+    parser.add_argument(
+        "--out",
+        default="results",
+        metavar="DIR",
+        help="folder for baselines.md and .csv (default: results, in the current folder; an existing file is replaced only with --force)",
+    )
     parser.add_argument("--force", action="store_true", help="replace existing files (missing folders are created)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of tables")
     parser.set_defaults(handler=run_baselines)
