@@ -101,7 +101,8 @@ def _register_baselines(subparsers: Subparsers) -> None:
         "--out",
         default="results",
         metavar="DIR",
-        help="folder for baselines.md and .csv (default: results, in the current folder; an existing file is replaced only with --force)",
+        help="folder for baselines.md and .csv (default: results, in the current folder; existing files are "
+        "replaced only with --force)",
     )
     parser.add_argument("--force", action="store_true", help="replace existing files (missing folders are created)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of tables")
