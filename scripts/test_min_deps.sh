@@ -23,13 +23,16 @@ stamp="$venv/pins.txt"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$pins" ]; then
   rm -rf "$venv"
   python3 -m venv "$venv"
-  "$venv/bin/python" -m pip install -q torch==2.13.0  # the local CPU build first, as in scripts/setup.sh
+  "$venv/bin/python" -m pip install -q --no-compile torch==2.13.0  # the local CPU build first, as in scripts/setup.sh
   # shellcheck disable=SC2086
-  "$venv/bin/python" -m pip install -q $pins "pytest>=7" "hypothesis>=6" "pexpect>=4.8"
-  "$venv/bin/python" -m pip install -q --no-deps -e .
+  "$venv/bin/python" -m pip install -q --no-compile $pins "pytest>=7" "hypothesis>=6" "pexpect>=4.8"
+  "$venv/bin/python" -m pip install -q --no-compile --no-deps -e .
   echo "$pins" > "$stamp"
 fi
 [ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run
+# numba keeps one cache index per function and discards another numba version's: the lowest numba gets a cache
+# of its own, or it and the dev venv would recompile each other's loops (side by side in .ci/run, even midway).
+export NUMBA_CACHE_DIR="$venv/numba-cache"
 echo "test_min_deps: $pins"
 "$venv/bin/python" -m pip check
 "$venv/bin/python" -m pytest -q -p no:cacheprovider -m "not slow" \
