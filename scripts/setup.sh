@@ -4,7 +4,7 @@
 # 2 minutes on a fresh machine instead of 6). A .venv set up with fewer extras gets the others on a later call.
 # PyTorch comes first where an extra needs it, pinned to the local CPU build (torch==2.13.0), so that
 # stable-baselines3 does not pull the multi-GB CUDA build.
-# --no-compile (here and in the other scripts' venvs): pip would byte-compile every module of every package (torch's
+# (here and in the other scripts' venvs): pip would byte-compile every module of every package (torch's
 # alone took 15 s of CPU of its 20); Python compiles those a program imports, once, at their first import.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,9 +18,9 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip
 if [[ ",$extras," =~ ,(all|train|ray|test), ]]; then  # the extras that bring Stable-Baselines3, hence PyTorch
-  .venv/bin/python -m pip install -q --no-compile torch==2.13.0
+  .venv/bin/python -m pip install -q torch==2.13.0
 fi
-.venv/bin/python -m pip install -q --no-compile -e ".[$extras]"
+.venv/bin/python -m pip install -q -e ".[$extras]"
 # Compile the steps and the optimum's history program once into numba's disk cache (beside the sources), as pip
 # compiles .pyc files: test workers and the first commands then load them instead of each compiling the same code.
 .venv/bin/python -W ignore -c '

@@ -28,10 +28,10 @@ install() {  # a fresh venv with HeartPole and the one extra; its log in $root/<
   if [ -f "$venv/pyproject.sha256" ] && [ "$(cat "$venv/pyproject.sha256")" = "$stamp" ]; then return 0; fi
   rm -rf "$venv"
   python3 -m venv "$venv"
-  case $extra in train | ray | d3rlpy) "$venv/bin/python" -m pip install -q --no-compile torch==2.13.0 ;; esac
+  case $extra in train | ray | d3rlpy) "$venv/bin/python" -m pip install -q torch==2.13.0 ;; esac
   case $extra in
-    d3rlpy) "$venv/bin/python" -m pip install -q --no-compile -e ".[offline]" d3rlpy==2.8.0 "pytest>=7" ;;
-    *) "$venv/bin/python" -m pip install -q --no-compile -e ".[$extra]" ;;
+    d3rlpy) "$venv/bin/python" -m pip install -q -e ".[offline]" d3rlpy==2.8.0 "pytest>=7" ;;
+    *) "$venv/bin/python" -m pip install -q -e ".[$extra]" ;;
   esac
   echo "$stamp" > "$venv/pyproject.sha256"
 }

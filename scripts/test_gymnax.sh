@@ -13,7 +13,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$(sha256sum pyproject.toml)" ]; 
   rm -rf "$venv"
   python3 -m venv "$venv"
   # six: gymnax 1.0.1 imports it (gymnax/utils/load_mnist.py) without declaring it
-  "$venv/bin/python" -m pip install -q --no-compile -e ".[jax]" gymnax six "pytest>=7"
+  "$venv/bin/python" -m pip install -q -e ".[jax]" gymnax six "pytest>=7"
   sha256sum pyproject.toml > "$stamp"
 fi
 [ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run

@@ -23,10 +23,10 @@ stamp="$venv/pins.txt"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$pins" ]; then
   rm -rf "$venv"
   python3 -m venv "$venv"
-  "$venv/bin/python" -m pip install -q --no-compile torch==2.13.0  # the local CPU build first, as in scripts/setup.sh
+  "$venv/bin/python" -m pip install -q torch==2.13.0  # the local CPU build first, as in scripts/setup.sh
   # shellcheck disable=SC2086
-  "$venv/bin/python" -m pip install -q --no-compile $pins "pytest>=7" "hypothesis>=6" "pexpect>=4.8"
-  "$venv/bin/python" -m pip install -q --no-compile --no-deps -e .
+  "$venv/bin/python" -m pip install -q $pins "pytest>=7" "hypothesis>=6" "pexpect>=4.8"
+  "$venv/bin/python" -m pip install -q --no-deps -e .
   echo "$pins" > "$stamp"
 fi
 [ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run

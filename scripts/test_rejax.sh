@@ -11,7 +11,7 @@ stamp="$venv/inputs.sha256"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$(sha256sum pyproject.toml scripts/test_rejax.sh)" ]; then
   rm -rf "$venv"
   python3 -m venv "$venv"
-  "$venv/bin/python" -m pip install -q --no-compile -e ".[jax]" rejax==0.1.3 "pytest>=7"
+  "$venv/bin/python" -m pip install -q -e ".[jax]" rejax==0.1.3 "pytest>=7"
   sha256sum pyproject.toml scripts/test_rejax.sh > "$stamp"
 fi
 [ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run
