@@ -4,8 +4,6 @@
 # 2 minutes on a fresh machine instead of 6). A .venv set up with fewer extras gets the others on a later call.
 # PyTorch comes first where an extra needs it, pinned to the local CPU build (torch==2.13.0), so that
 # stable-baselines3 does not pull the multi-GB CUDA build.
-# (here and in the other scripts' venvs): pip would byte-compile every module of every package (torch's
-# alone took 15 s of CPU of its 20); Python compiles those a program imports, once, at their first import.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 extras="${1:-all}"
