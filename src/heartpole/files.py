@@ -276,18 +276,18 @@ def folder_lock(target: PathLike) -> Iterator[None]:
     target = Path(target)
     lock = target.parent / f".{target.name}.lock"
     created: list[Path] = []
+    handle: int | None = None  # None: not ours (another holds it), nothing to remove
     try:
         with signals_deferred():
             created = _make_folder(target.parent)
             handle = _locked(lock, target)
-        try:
-            yield
-        finally:
-            with signals_deferred():
+        yield
+    finally:
+        with signals_deferred():
+            if handle is not None:
                 lock.unlink(missing_ok=True)  # while locked: a process that opened it meanwhile sees it gone
                 os.close(handle)
-    finally:
-        _remove_if_empty(created)
+            _remove_if_empty(created)
 
 
 def _locked(lock: Path, target: Path) -> int:
