@@ -30,6 +30,9 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$pins" ]; then
   echo "$pins" > "$stamp"
 fi
 [ "${1:-}" = "--setup-only" ] && exit 0  # .ci/run builds the venv while other tests run
+# numba keeps one cache index per function and discards another numba version's: the lowest numba gets a cache
+# of its own, or it and the dev venv would recompile each other's loops (side by side in .ci/run, even midway).
+export NUMBA_CACHE_DIR="$venv/numba-cache"
 echo "test_min_deps: $pins"
 "$venv/bin/python" -m pip check
 "$venv/bin/python" -m pytest -q -p no:cacheprovider -m "not slow" \

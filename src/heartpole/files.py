@@ -13,6 +13,7 @@ and never costs what was there before:
   their own (Minari).
 * [`folder_in_place`][heartpole.files.folder_in_place]: work that saves its own progress in its output folder (a Ray
   Tune search, to resume) runs there, with any earlier folder kept aside until the work is done.
+  [`folder_lock`][heartpole.files.folder_lock] keeps a second process from writing the same folder meanwhile.
 * [`signal_policy`][heartpole.signals.signal_policy] and [`signals_deferred`][heartpole.signals.signals_deferred]
   ([`heartpole.signals`][heartpole.signals], exported here too): the ``heartpole`` command's handlers, under which
   a signal unwinds through every cleanup; moves into place and cleanups run to their end.
@@ -49,6 +50,11 @@ from heartpole.signals import (
     signals_as_ctrl_c,
     signals_deferred,
 )
+
+try:
+    import fcntl
+except ImportError:  # Windows: folder_lock locks nothing
+    fcntl = None  # type: ignore[assignment]
 
 PathLike: TypeAlias = "str | os.PathLike[str]"
 
@@ -250,6 +256,65 @@ def folder_in_place(target: PathLike, keep: Callable[[Path], bool]) -> Iterator[
                 shutil.rmtree(old, ignore_errors=True)
 
 
+class FolderInUseError(OSError):
+    """Another process holds [`folder_lock`][heartpole.files.folder_lock] on the folder."""
+
+
+@contextmanager
+def folder_lock(target: PathLike) -> Iterator[None]:
+    """Hold an exclusive lock on ``target`` while the block runs, for work that writes in the folder itself.
+
+    The lock is the hidden file ``.NAME.lock`` beside ``target`` (missing parents are created), locked with
+    ``flock`` and removed when the block ends; missing parents it created are removed if left empty. The
+    operating system drops the lock of a process that dies, so a lock file a killed process left holds nobody
+    back. Where Python has no ``fcntl`` (Windows), the block runs without a lock.
+
+    Raises:
+        FolderInUseError: another process (or another ``folder_lock`` in this one) holds the lock; nothing was
+            changed.
+    """
+    target = Path(target)
+    lock = target.parent / f".{target.name}.lock"
+    created: list[Path] = []
+    handle: int | None = None  # None: not ours (another holds it), nothing to remove
+    try:
+        with signals_deferred():
+            created = _make_folder(target.parent)
+            handle = _locked(lock, target)
+        yield
+    finally:
+        with signals_deferred():
+            if handle is not None:
+                lock.unlink(missing_ok=True)  # while locked: a process that opened it meanwhile sees it gone
+                os.close(handle)
+            _remove_if_empty(created)
+
+
+def _locked(lock: Path, target: Path) -> int:
+    """A descriptor of ``lock``, locked. A lock file its holder removed after we opened it is no longer the lock:
+    it is made again."""
+    while True:
+        try:
+            handle = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as error:
+            raise naming_target(error, [target], [lock]) from error
+        try:
+            if fcntl is not None:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(handle)
+            raise FolderInUseError(
+                f"{target} is being written by another process (it holds {lock}); wait for it to end or choose "
+                "another folder"
+            ) from None
+        try:
+            if os.path.samestat(os.fstat(handle), os.stat(lock)):
+                return handle
+        except FileNotFoundError:
+            pass
+        os.close(handle)
+
+
 def _empty(folder: Path) -> None:
     for path in folder.iterdir() if folder.is_dir() else ():
         if path.is_dir() and not path.is_symlink():
@@ -260,11 +325,13 @@ def _empty(folder: Path) -> None:
 
 __all__ = [
     "SIGNALS",
+    "FolderInUseError",
     "Interrupted",
     "atomic_files",
     "atomic_write",
     "exit_code",
     "folder_in_place",
+    "folder_lock",
     "interruption",
     "json_text",
     "received_signal",

@@ -139,7 +139,9 @@ def run_tune(args: argparse.Namespace) -> int:
     out = Path(not_empty("--out", args.out) or f"runs/tune-{settings.base.algo}").resolve()
     try:
         scale.prepare_search_folder(out, args.resume, args.force, trust_pickles=args.trust_pickles)
-    except ValueError as error:
+        with files.folder_lock(out):  # before announcing; tune_search holds it for the search
+            pass
+    except (ValueError, files.FolderInUseError) as error:
         raise CommandError(str(error)) from None
     paths.expect_output(out)  # once the search is complete in --out, a signal ends the command as a success
     if not args.json:
@@ -159,6 +161,8 @@ def run_tune(args: argparse.Namespace) -> int:
         return files.exit_code()
     except ConnectionError as error:
         raise CommandError(f"cannot reach the Ray cluster at {args.address}: {error}") from None
+    except files.FolderInUseError as error:  # another search took --out since the check above
+        raise CommandError(str(error)) from None
     if args.json:
         print(json.dumps({"out": str(out), **summary}, allow_nan=False))
     else:

@@ -35,6 +35,10 @@ class Predictor(Protocol):
 
 SB3_ALGORITHMS = ("ppo", "a2c", "dqn")
 """The Stable-Baselines3 algorithms HeartPole trains and loads."""
+OFF_POLICY_ALGORITHMS = frozenset({"dqn"})
+"""Those of [`SB3_ALGORITHMS`][heartpole.policies.common.SB3_ALGORITHMS] that learn from a replay buffer: SB3 keeps
+their last raw observations (``_last_original_obs``) whatever the env, where the on-policy ones keep them only
+under ``VecNormalize``."""
 # The files a training run writes in its folder (every training backend writes them; loading and plots read them).
 MODEL_NAME = "model.zip"
 SIDECAR_NAME = "heartpole.json"

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
 from heartpole.policies.common import (
+    OFF_POLICY_ALGORITHMS,
     SB3_ALGORITHMS,
     SIDECAR_NAME,
     VECNORMALIZE_JSON_NAME,
@@ -189,7 +190,7 @@ def load_model_policy(
     normalizer_path = recorded_normalizer(path)
     normalizer = load_normalizer(normalizer_path, trust_pickles=trust_pickles) if normalizer_path is not None else None
     if normalizer is None:
-        _warn_if_trained_normalized(path)
+        _warn_if_trained_normalized(path, algo)
     policy = ModelPolicy(model, normalizer, name=str(path))
     policy.normalizer_path = normalizer_path
     return policy
@@ -252,10 +253,14 @@ def _recorded_net_arch(path: Path) -> list[int] | None:
     return net_arch
 
 
-def _warn_if_trained_normalized(path: Path) -> None:
-    """Warn when the zip records the unnormalised observations SB3 keeps only under ``VecNormalize``
-    (``_last_original_obs``), since no statistics are applied (unless statistics lie beside it unrecorded:
-    `recorded_normalizer` has warned about those)."""
+def _warn_if_trained_normalized(path: Path, algo: str) -> None:
+    """Warn when the zip of an on-policy ``algo`` records the unnormalised observations SB3 keeps for those only
+    under ``VecNormalize`` (``_last_original_obs``), since no statistics are applied (unless statistics lie beside
+    it unrecorded: `recorded_normalizer` has warned about those). An off-policy model keeps them with or without
+    ``VecNormalize`` ([`OFF_POLICY_ALGORITHMS`][heartpole.policies.common.OFF_POLICY_ALGORITHMS]): its zip does not
+    tell, and nothing is said."""
+    if algo in OFF_POLICY_ALGORITHMS:
+        return
     if any((path.parent / name).is_file() for name in (VECNORMALIZE_JSON_NAME, VECNORMALIZE_NAME)):
         return
     try:

@@ -284,68 +284,71 @@ def tune_search(
     first (Optuna enqueues them). With ``resume``, the settings saved in ``folder`` are used and ``settings`` is
     ignored; finished trials are kept, unfinished ones rerun, failed ones stay failed. ``folder`` is checked by
     [`prepare_search_folder`][heartpole.scale.search.prepare_search_folder]; ``force`` replaces an earlier search once
-    the new one is done. Resuming unpickles Ray Tune's saved state, which can run code: it needs
-    ``trust_pickles``.
+    the new one is done. One search at a time runs in ``folder``
+    ([`heartpole.files.folder_lock`][heartpole.files.folder_lock]). Resuming unpickles Ray Tune's saved state, which
+    can run code: it needs ``trust_pickles``.
 
     Raises:
         UntrustedSearchError: ``resume`` without ``trust_pickles`` (before Ray reads anything).
         AllTrialsFailedError: every trial failed (``tune_summary.json`` and ``trials.csv`` are still written).
         SearchInterruptedError: a signal stopped the search; it stays in ``folder`` to resume.
         KeyboardInterrupt: a signal stopped it before it could resume, or with ``force``: ``folder`` is as it was.
+        heartpole.files.FolderInUseError: another search is running in ``folder`` (nothing was changed).
     """
     import optuna
     from ray.tune.search.optuna import OptunaSearch
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # not "A new study created in memory"
-    folder = prepare_search_folder(folder, resume, force, trust_pickles=trust_pickles)
-    earlier = not resume and folder.is_dir() and any(folder.iterdir())
-    if resume:
-        settings = read_settings(folder)
-    base = settings.base
-    trainable = tune.with_resources(
-        tune.with_parameters(
-            _search_trial,
-            base=base,
-            seeds=list(settings.seeds),
-            folder=str(folder),
-            eval_episodes=settings.eval_episodes,
-            eval_seed=settings.eval_seed,
-            threads=cpus_per_trial,
-        ),
-        {"cpu": cpus_per_trial},
-    )
-    bar = TrialsBar(settings.trials, "trials", OBJECTIVE)
-    place = nullcontext(folder) if resume else files.folder_in_place(folder, keep=can_resume)
-    with place, ray_session(address, num_cpus):
+    with files.folder_lock(Path(folder).resolve()):  # one search at a time writes the folder
+        folder = prepare_search_folder(folder, resume, force, trust_pickles=trust_pickles)
+        earlier = not resume and folder.is_dir() and any(folder.iterdir())
         if resume:
-            tuner = tune.Tuner.restore(str(folder / SEARCH_NAME), trainable, resume_unfinished=True)
-            # Tuner.restore takes no run configuration: give the restored one a bar that starts where
-            # the interrupted search stopped.
-            # (_local_tuner is None only under Ray Client, a "ray://" address.)
-            tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
-        else:
-            files.write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
-            searcher = OptunaSearch(
-                metric=OBJECTIVE,
-                mode="max",
-                seed=settings.search_seed,
-                points_to_evaluate=[dict(p) for p in points_to_evaluate] if points_to_evaluate else None,
-            )
-            tuner = tune.Tuner(
-                trainable,
-                param_space=dict(space if space is not None else default_space(base.algo)),
-                tune_config=tune.TuneConfig(search_alg=searcher, num_samples=settings.trials),
-                run_config=run_config(folder, SEARCH_NAME, bar),
-            )
-        grid = fit(tuner, bar)
-        finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
-        if len(finished) < settings.trials:  # Tune stops on a signal after saving its state
-            kept = resume or not earlier and can_resume(folder)  # as folder_in_place decides
-            raise SearchInterruptedError(f"{len(finished)} trials finished") if kept else files.interruption()
-        summary = _write_search_results(settings, grid, folder)
-    if summary["best"] is None:
-        raise AllTrialsFailedError([TrialFailure(f["trial"], f["error"]) for f in summary["failed"]])
-    return summary
+            settings = read_settings(folder)
+        base = settings.base
+        trainable = tune.with_resources(
+            tune.with_parameters(
+                _search_trial,
+                base=base,
+                seeds=list(settings.seeds),
+                folder=str(folder),
+                eval_episodes=settings.eval_episodes,
+                eval_seed=settings.eval_seed,
+                threads=cpus_per_trial,
+            ),
+            {"cpu": cpus_per_trial},
+        )
+        bar = TrialsBar(settings.trials, "trials", OBJECTIVE)
+        place = nullcontext(folder) if resume else files.folder_in_place(folder, keep=can_resume)
+        with place, ray_session(address, num_cpus):
+            if resume:
+                tuner = tune.Tuner.restore(str(folder / SEARCH_NAME), trainable, resume_unfinished=True)
+                # Tuner.restore takes no run configuration: give the restored one a bar that starts where
+                # the interrupted search stopped.
+                # (_local_tuner is None only under Ray Client, a "ray://" address.)
+                tuner._local_tuner.get_run_config().callbacks = [bar]  # type: ignore[union-attr]
+            else:
+                files.write_json(folder / SEARCH_SETTINGS_FILE, settings.to_dict())
+                searcher = OptunaSearch(
+                    metric=OBJECTIVE,
+                    mode="max",
+                    seed=settings.search_seed,
+                    points_to_evaluate=[dict(p) for p in points_to_evaluate] if points_to_evaluate else None,
+                )
+                tuner = tune.Tuner(
+                    trainable,
+                    param_space=dict(space if space is not None else default_space(base.algo)),
+                    tune_config=tune.TuneConfig(search_alg=searcher, num_samples=settings.trials),
+                    run_config=run_config(folder, SEARCH_NAME, bar),
+                )
+            grid = fit(tuner, bar)
+            finished = [r for r in grid if r.error is not None or OBJECTIVE in (r.metrics or {})]
+            if len(finished) < settings.trials:  # Tune stops on a signal after saving its state
+                kept = resume or not earlier and can_resume(folder)  # as folder_in_place decides
+                raise SearchInterruptedError(f"{len(finished)} trials finished") if kept else files.interruption()
+            summary = _write_search_results(settings, grid, folder)
+        if summary["best"] is None:
+            raise AllTrialsFailedError([TrialFailure(f["trial"], f["error"]) for f in summary["failed"]])
+        return summary
 
 
 def _trial_tag(result: tune.Result) -> tuple[int, str]:
