@@ -413,3 +413,27 @@ def test_the_first_signal_to_arrive_decides_though_python_handles_sighup_first()
     finally:
         child.kill()
         child.wait()
+
+
+def test_an_output_announced_as_new_is_not_replaced_when_another_run_wrote_it_meanwhile(tmp_path: Path) -> None:
+    from heartpole import paths
+
+    first, second = tmp_path / "baselines.md", tmp_path / "baselines.csv"
+    paths.forget_outputs()
+    paths.expect_output(first, second, replace=False)  # a command without --force
+    try:
+        with pytest.raises(FileExistsError) as raised, files.atomic_files(first, second) as (a, b):
+            a.write_text("ours")
+            b.write_text("ours")
+            second.write_text("theirs")  # another run placed its file while this one worked
+        assert raised.value.filename == str(second) and "pass --force" in str(raised.value)
+        assert not first.exists() and second.read_text() == "theirs"  # all or nothing; theirs kept
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["baselines.csv"]  # no temporary file left
+        paths.forget_outputs()
+        paths.expect_output(first, second)  # with --force
+        with files.atomic_files(first, second) as (a, b):
+            a.write_text("ours")
+            b.write_text("ours")
+        assert first.read_text() == second.read_text() == "ours"
+    finally:
+        paths.forget_outputs()

@@ -29,6 +29,7 @@ only [`heartpole.paths`][heartpole.paths] and [`heartpole.signals`][heartpole.si
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -38,7 +39,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TypeAlias
 
-from heartpole.paths import naming_target, note_placed
+from heartpole.paths import naming_target, new_only, note_placed
 from heartpole.signals import (
     SIGNALS,
     Interrupted,
@@ -112,9 +113,9 @@ def atomic_files(*paths: PathLike) -> Iterator[list[Path]]:
                 temporaries.append(_temporary_file(target))
         yield temporaries
         with signals_deferred():
-            for temporary, target in zip(temporaries, targets):
+            for temporary in temporaries:
                 os.chmod(temporary, 0o666 & ~umask())  # mkstemp makes files private; give the usual mode
-                os.replace(temporary, target)
+            _place(temporaries, targets)
             note_placed(*targets)
     except BaseException as error:
         with signals_deferred():
@@ -124,6 +125,41 @@ def atomic_files(*paths: PathLike) -> Iterator[list[Path]]:
         if isinstance(error, OSError):
             raise naming_target(error, targets, temporaries) from error
         raise
+
+
+def _place(temporaries: list[Path], targets: list[Path]) -> None:
+    """Move each temporary file to its target. A target announced as new only (`heartpole.paths.new_only`) is
+    linked, which fails where a file appeared meanwhile: then the ones linked are taken back and
+    ``FileExistsError`` names the target."""
+    linked: list[Path] = []
+    try:
+        for temporary, target in zip(temporaries, targets):
+            if new_only(target) and _linked(temporary, target):
+                linked.append(target)
+    except FileExistsError:
+        for placed in linked:
+            placed.unlink(missing_ok=True)
+        reason = "it appeared while this command ran (another run writing it?); pass --force to replace it"
+        raise FileExistsError(errno.EEXIST, reason, str(target)) from None
+    for temporary, target in zip(temporaries, targets):
+        if target in linked:
+            temporary.unlink()
+        else:
+            os.replace(temporary, target)
+
+
+def _linked(temporary: Path, target: Path) -> bool:
+    """Hard-link ``temporary`` at ``target``; ``False`` on a file system without hard links (then the target is
+    checked and replaced, which a concurrent writer can still race)."""
+    try:
+        os.link(temporary, target)
+    except OSError as error:
+        if error.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK, errno.EXDEV):
+            raise
+        if target.exists():
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(target)) from None
+        return False
+    return True
 
 
 def atomic_write(path: PathLike, write: Callable[[Path], object]) -> Path:

@@ -29,6 +29,7 @@ TEMPORARY_ROOM = 20
 
 _expected: list[Path] = []  # the outputs a command announced (expect_output)
 _placed: list[Path] = []  # the files and folders moved into place since forget_outputs
+_new_only: set[Path] = set()  # announced outputs that must not replace a file (no --force)
 
 
 def check_writable(target: PathLike) -> Path:
@@ -117,12 +118,22 @@ def forget_outputs() -> None:
     """Start afresh: no output expected, none placed (each ``heartpole`` command begins so)."""
     _expected.clear()
     _placed.clear()
+    _new_only.clear()
 
 
-def expect_output(*paths: PathLike) -> None:
+def expect_output(*paths: PathLike, replace: bool = True) -> None:
     """Note ``paths`` as the output a command is about to write (see
-    [`outputs_placed`][heartpole.paths.outputs_placed])."""
+    [`outputs_placed`][heartpole.paths.outputs_placed]); with ``replace=False``, a file that appears at one of
+    them meanwhile (another run writing the same output) is not replaced
+    ([`new_only`][heartpole.paths.new_only])."""
     _expected.extend(Path(p) for p in paths)
+    if not replace:
+        _new_only.update(Path(p) for p in paths)
+
+
+def new_only(path: PathLike) -> bool:
+    """Whether ``path`` was announced with ``replace=False``: it is placed only where nothing is."""
+    return Path(path) in _new_only
 
 
 def note_placed(*paths: PathLike) -> None:

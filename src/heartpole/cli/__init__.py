@@ -166,7 +166,7 @@ def _run(argv: Sequence[str] | None, command: list[str]) -> int:
                 f"heartpole {args.command}: error: cannot write the standard output: {error.strerror}", file=sys.stderr
             )
             return 2
-        if error.errno not in WRITE_ERRORS or error.filename is None:
+        if error.errno not in (errno.EEXIST, *WRITE_ERRORS) or error.filename is None:
             raise
         # A full disk or a read-only file system met while writing: heartpole.files removed what it had
         # written, and named the output (not its temporary name).

@@ -170,7 +170,7 @@ def output_file(path: str | os.PathLike[str], *, force: bool, suffixes: Sequence
     if not existing.is_dir():
         raise CommandError(f"{target}: {existing} is a file, not a folder")
     writable(target)
-    paths.expect_output(target)
+    paths.expect_output(target, replace=force)
     return target
 
 
