@@ -61,3 +61,43 @@ def test_network_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
     monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed - 1)
     with pytest.raises(ValueError, match=r"net_arch \[64, 64\] has 4,933 parameters per network"):
         checks.check_network_memory((64, 64), 6, 4)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"hyperparameters": {"n_steps": 10**12}}, "n_steps x n_envs = 2,000,000,000,000 steps a rollout"),
+        ({"n_envs": 10**9}, "n_steps x n_envs = 128,000,000,000 steps a rollout with n_envs 1,000,000,000"),
+        ({"algo": "dqn", "hyperparameters": {"buffer_size": 10**12}}, "buffer_size 1,000,000,000,000"),
+    ],
+    ids=["n_steps", "n_envs", "buffer_size"],
+)
+def test_a_buffer_larger_than_the_memory_is_refused_before_training(
+    capsys, tmp_path: Path, changes: dict, message: str
+) -> None:
+    from dataclasses import replace
+
+    from heartpole.training import preset_config
+    from heartpole.training.presets import save_preset
+
+    preset = tmp_path / "p.json"
+    config = replace(preset_config(), timesteps=64, n_envs=2, net_arch=(8,))
+    save_preset(replace(config, **changes), preset)
+    err = one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
+    assert message in err and "GiB of memory (at most half of it may go to them)" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_buffer_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
+    from dataclasses import replace
+
+    from heartpole.training import checks, preset_config
+
+    config = replace(preset_config(), n_envs=4, hyperparameters={"n_steps": 128})
+    needed = checks.check_buffer_memory(config, 6)
+    assert needed == 4 * 128 * (6 + checks.BUFFER_NUMBERS_PER_STEP) * 4 + 4 * checks.ENV_BYTES
+    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed)
+    checks.check_buffer_memory(config, 6)
+    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed - 1)
+    with pytest.raises(ValueError, match="n_steps x n_envs = 512 steps a rollout with n_envs 4"):
+        checks.check_buffer_memory(config, 6)

@@ -162,6 +162,7 @@ __all__ = [
     "naming_target",
     "note_placed",
     "outputs_placed",
+    "physical_memory",
 ]
 
 
@@ -174,3 +175,12 @@ def followed(target: PathLike) -> Path:
     if path.is_symlink() and path.exists():
         return Path(os.path.realpath(path))
     return path
+
+
+def physical_memory() -> int | None:
+    """The machine's physical memory in bytes, where the platform says (``None`` elsewhere): what a size a user
+    asks for (a grid, a network, a buffer) is checked against before the work starts."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None

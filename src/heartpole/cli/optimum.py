@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from heartpole import paths
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
@@ -206,21 +206,13 @@ def _check_memory(env_id: str, kwargs: dict[str, Any], grid: int) -> None:
         columns = max_awake(env_dynamics(env_id, kwargs).params) + 1
     except (ValueError, TypeError):
         return  # the solve says what is wrong with the env or its parameters
-    needed, total = SOLVER_ARRAYS * grid * columns * 8, _physical_memory()
+    needed, total = SOLVER_ARRAYS * grid * columns * 8, paths.physical_memory()
     if total is not None and needed > total:
         raise CommandError(
             f"--grid {grid}: the solver would need about {needed / 2**30:,.0f} GiB of memory ({SOLVER_ARRAYS} arrays "
             f"of {grid:,} x {columns} numbers), more than this machine's {total / 2**30:,.0f} GiB; give a smaller "
             f"--grid (default 400; the grid's error falls as 1 / grid**2)"
         )
-
-
-def _physical_memory() -> int | None:
-    """The machine's memory in bytes, or ``None`` where the system does not say."""
-    try:
-        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (AttributeError, ValueError, OSError):
-        return None
 
 
 def _param_error(error: Exception, items: list[str]) -> str:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from heartpole.parameters import is_number
+from heartpole.paths import physical_memory
 
 
 @dataclass(frozen=True)
@@ -120,6 +120,8 @@ is ``net_arch``), and ``anneal_learning_rate``."""
 
 SB3_BUFFER_SIZE = 1_000_000
 """Stable-Baselines3's default DQN replay buffer, for a ``batch_size`` given without ``buffer_size``."""
+SB3_N_STEPS = {"ppo": 2048, "a2c": 5}
+"""Stable-Baselines3's default steps per env in a rollout, for PPO and A2C."""
 
 
 @functools.lru_cache(maxsize=1)
@@ -228,6 +230,40 @@ def check_config(config: Any) -> None:
     actions = int(getattr(venv.single_action_space, "n", 1))
     venv.close()
     check_network_memory(config.net_arch, inputs, actions)
+    check_buffer_memory(config, inputs)
+
+
+BUFFER_NUMBERS_PER_STEP = 8
+"""Float32 numbers a rollout buffer keeps per step besides the observation (action, reward, return, advantage,
+value, log-probability, episode start), counted generously; a replay buffer keeps two observations a step."""
+ENV_BYTES = 1024
+"""Bytes one env of the vector env takes in training, counted generously (its state, observation, results)."""
+
+
+def check_buffer_memory(config: Any, inputs: int) -> int:
+    """The bytes the envs and the rollout (PPO, A2C) or replay (DQN) buffer of ``config`` take, checked against
+    half the machine's memory before anything is built: ``n_steps`` of ``10**12`` would ask for hundreds of TiB.
+
+    Raises:
+        ValueError: naming the hyperparameters, the memory they need and the memory there is.
+    """
+    hyperparameters = config.hyperparameters
+    if config.algo == "dqn":
+        steps = hyperparameters.get("buffer_size", SB3_BUFFER_SIZE)
+        needed = steps * (2 * inputs + BUFFER_NUMBERS_PER_STEP) * 4
+        what = f"buffer_size {steps:,}"
+    else:
+        steps = hyperparameters.get("n_steps", SB3_N_STEPS[config.algo]) * config.n_envs
+        needed = steps * (inputs + BUFFER_NUMBERS_PER_STEP) * 4
+        what = f"n_steps x n_envs = {steps:,} steps a rollout"
+    needed += config.n_envs * ENV_BYTES
+    memory = physical_memory()
+    if memory is not None and needed > memory // 2:
+        raise ValueError(
+            f"{what} with n_envs {config.n_envs:,}: training needs about {needed / 2**30:,.1f} GiB for its buffer "
+            f"and envs; this machine has {memory / 2**30:,.1f} GiB of memory (at most half of it may go to them)"
+        )
+    return needed
 
 
 NETWORK_BYTES_PER_PARAMETER = 2 * 4 * 4
@@ -258,14 +294,6 @@ def check_network_memory(net_arch: Sequence[int], inputs: int, actions: int) -> 
     return needed
 
 
-def physical_memory() -> int | None:
-    """The machine's physical memory in bytes, where the platform says (``None`` elsewhere)."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
 __all__ = [
     "HYPERPARAMETERS",
     "Rule",
@@ -273,7 +301,7 @@ __all__ = [
     "check_hyperparameters",
     "check_net_arch",
     "check_network_memory",
-    "physical_memory",
+    "check_buffer_memory",
     "NETWORK_BYTES_PER_PARAMETER",
     "check_score_rate",
     "score_rate_ceiling",
