@@ -67,7 +67,7 @@ def test_network_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
     ("changes", "message"),
     [
         ({"hyperparameters": {"n_steps": 10**12}}, "n_steps x n_envs = 2,000,000,000,000 steps a rollout"),
-        ({"n_envs": 10**9}, "n_steps x n_envs = 128,000,000,000 steps a rollout with n_envs 1,000,000,000"),
+        ({"n_envs": 10**9}, "n_steps x n_envs = 128,000,000,000 steps a rollout and n_envs 1,000,000,000"),
         ({"algo": "dqn", "hyperparameters": {"buffer_size": 10**12}}, "buffer_size 1,000,000,000,000"),
     ],
     ids=["n_steps", "n_envs", "buffer_size"],
@@ -84,20 +84,31 @@ def test_a_buffer_larger_than_the_memory_is_refused_before_training(
     config = replace(preset_config(), timesteps=64, n_envs=2, net_arch=(8,))
     save_preset(replace(config, **changes), preset)
     err = one_line(capsys, ["train", "--preset", str(preset), "--out", str(tmp_path / "o"), "--eval-episodes", "2"])
-    assert message in err and "GiB of memory (at most half of it may go to them)" in err
+    assert message in err and "GiB of memory; this machine has" in err
     assert not (tmp_path / "o").exists()
 
 
 def test_buffer_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
     from dataclasses import replace
 
+    from heartpole import paths
     from heartpole.training import checks, preset_config
 
     config = replace(preset_config(), n_envs=4, hyperparameters={"n_steps": 128})
     needed = checks.check_buffer_memory(config, 6)
     assert needed == 4 * 128 * (6 + checks.BUFFER_NUMBERS_PER_STEP) * 4 + 4 * checks.ENV_BYTES
-    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed)
+    monkeypatch.setattr(paths, "physical_memory", lambda: 2 * needed)
     checks.check_buffer_memory(config, 6)
-    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed - 1)
-    with pytest.raises(ValueError, match="n_steps x n_envs = 512 steps a rollout with n_envs 4"):
+    monkeypatch.setattr(paths, "physical_memory", lambda: 2 * needed - 1)
+    with pytest.raises(ValueError, match="n_steps x n_envs = 512 steps a rollout and n_envs 4"):
         checks.check_buffer_memory(config, 6)
+
+
+def test_more_episodes_than_the_memory_holds_are_refused_before_they_run(capsys, tmp_path: Path) -> None:
+    err = one_line(capsys, ["evaluate", "--policy", "expert", "--episodes", str(10**13)])
+    assert "evaluating 10,000,000,000,000 episodes needs about" in err and "GiB of memory" in err
+    pytest.importorskip("minari")
+    from heartpole.offline import truth
+
+    with pytest.raises(ValueError, match=r"a truth of 100,000,000,000 episodes \(run side by side\) needs about"):
+        truth.true_value("expert", episodes=10**11)

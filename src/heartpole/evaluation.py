@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from heartpole import paths
 from heartpole.dynamics import Dynamics
 from heartpole.parameters import check_integer
 from heartpole.policies import Policy, available_builtins, load_policy, policy_name
@@ -43,7 +44,7 @@ from heartpole.results import Comparison as Comparison
 from heartpole.results import Episodes as Episodes
 from heartpole.results import EvaluationResult as EvaluationResult
 from heartpole.rewards import expected_risk
-from heartpole.rollout import base_env, episode_steps, policy_actions, step_risks, vector_env
+from heartpole.rollout import ENV_BYTES, base_env, episode_steps, policy_actions, step_risks, vector_env
 from heartpole.solved import SOLVED_REGRET as SOLVED_REGRET
 from heartpole.truth import NO_SINGLE_OPTIMUM, oracle_fields, people_truth
 
@@ -57,6 +58,8 @@ DEFAULT_NUM_ENVS = 10_000
 """Episodes run side by side in one vector env; more episodes run in chunks of this many. Wider chunks
 amortise the per-step Python overhead (measured: 10,000 episodes ran ~2x faster in chunks of 10,000 than
 of 2,000, and ~3x faster than of 1,000)."""
+EPISODE_BYTES = 128
+"""Bytes an evaluation keeps per episode (its results' arrays and their summaries), counted generously."""
 
 ENV_STREAM, POLICY_STREAM = 0, 1
 """The seed's spawn keys of the envs' episodes and of random policies, kept apart."""
@@ -133,6 +136,7 @@ def _checked(
     """``episodes``, ``seed``, the chunk and ``env_kwargs`` of an evaluation, checked."""
     episodes, seed = check_integer("episodes", episodes, 1), check_integer("seed", seed, 0)
     chunk = min(episodes, DEFAULT_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
+    paths.check_memory(episodes * EPISODE_BYTES + chunk * ENV_BYTES, f"evaluating {episodes:,} episodes")
     return episodes, seed, chunk, dict(env_kwargs or {})
 
 

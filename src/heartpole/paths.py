@@ -163,6 +163,7 @@ __all__ = [
     "note_placed",
     "outputs_placed",
     "physical_memory",
+    "check_memory",
 ]
 
 
@@ -184,3 +185,15 @@ def physical_memory() -> int | None:
         return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
     except (AttributeError, ValueError, OSError):
         return None
+
+
+def check_memory(needed: int, what: str) -> None:
+    """``ValueError`` when ``what`` (a sentence's subject: ``"--episodes 10,000,000,000,000"``) needs ``needed``
+    bytes, more than half the machine's memory ([`physical_memory`][heartpole.paths.physical_memory]); nothing
+    where the platform does not say."""
+    memory = physical_memory()
+    if memory is not None and needed > memory // 2:
+        raise ValueError(
+            f"{what} needs about {needed / 2**30:,.1f} GiB of memory; this machine has {memory / 2**30:,.1f} GiB "
+            "(at most half of it may go to it)"
+        )

@@ -50,6 +50,11 @@ class EpisodeStep(NamedTuple):
     ``people``."""
 
 
+ENV_BYTES = 1024
+"""Bytes one env of a vector env takes with its step's results, counted generously: what a size given in envs
+(``n_envs``, a truth's episodes run side by side) is checked against memory with."""
+
+
 @contextmanager
 def vector_env(env_id: str, env_kwargs: Mapping[str, Any], num_envs: int) -> Iterator[VectorEnv]:
     """The native vector env of ``env_id`` with ``num_envs`` envs, closed afterwards.

@@ -16,10 +16,11 @@ import numpy as np
 
 from heartpole.evaluation import chunk_seed, policy_rng
 from heartpole.parameters import check_integer
+from heartpole.paths import check_memory
 from heartpole.policies import Policy, load_policy, policy_name
 from heartpole.reporting import plus_minus
 from heartpole.rewards import expected_risk
-from heartpole.rollout import base_env, episode_steps, policy_actions, step_risks, vector_env
+from heartpole.rollout import ENV_BYTES, base_env, episode_steps, policy_actions, step_risks, vector_env
 from heartpole.stats import confidence_interval
 
 DEFAULT_GAMMA = 0.95
@@ -125,6 +126,7 @@ def _run(
     act: Policy, name: str, gamma: float, episodes: int, env_id: str, seed: int, env_kwargs: dict[str, Any]
 ) -> dict[str, np.ndarray]:
     """Per-episode discounted and undiscounted sums, realized and expected-risk, in one pass."""
+    check_memory(episodes * (ENV_BYTES + 64), f"a truth of {episodes:,} episodes (run side by side)")
     sums = {key: np.zeros(episodes) for key in ("value", "realized_value", "expected_return", "mean_return")}
     attacks = np.zeros(episodes)
     discount = 1.0

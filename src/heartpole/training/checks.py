@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 
 from heartpole.parameters import is_number
-from heartpole.paths import physical_memory
+from heartpole.paths import check_memory, physical_memory
+from heartpole.rollout import ENV_BYTES
 
 
 @dataclass(frozen=True)
@@ -236,8 +237,6 @@ def check_config(config: Any) -> None:
 BUFFER_NUMBERS_PER_STEP = 8
 """Float32 numbers a rollout buffer keeps per step besides the observation (action, reward, return, advantage,
 value, log-probability, episode start), counted generously; a replay buffer keeps two observations a step."""
-ENV_BYTES = 1024
-"""Bytes one env of the vector env takes in training, counted generously (its state, observation, results)."""
 
 
 def check_buffer_memory(config: Any, inputs: int) -> int:
@@ -257,12 +256,7 @@ def check_buffer_memory(config: Any, inputs: int) -> int:
         needed = steps * (inputs + BUFFER_NUMBERS_PER_STEP) * 4
         what = f"n_steps x n_envs = {steps:,} steps a rollout"
     needed += config.n_envs * ENV_BYTES
-    memory = physical_memory()
-    if memory is not None and needed > memory // 2:
-        raise ValueError(
-            f"{what} with n_envs {config.n_envs:,}: training needs about {needed / 2**30:,.1f} GiB for its buffer "
-            f"and envs; this machine has {memory / 2**30:,.1f} GiB of memory (at most half of it may go to them)"
-        )
+    check_memory(needed, f"training with {what} and n_envs {config.n_envs:,} (its buffer and envs)")
     return needed
 
 
