@@ -62,6 +62,7 @@ never pay), `.drinking` (proclivity 0), `.history` (what the work and time so fa
 
 from __future__ import annotations
 
+from .coffee import CoffeeSolution, solve_coffee
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError
 from .drinking import (
     DRINKING_ACTIONS,
@@ -72,7 +73,9 @@ from .drinking import (
     solve_drinking,
 )
 from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_drinks, coffee_check, drink_floor
+from .lifetime import check_drinks, check_drinks_lifetime
 from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regret, solve_people, split_people
+from .point import FrontierPoint, frontier_point
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
 from .whole import HistoryOptimum, solve_history
@@ -84,7 +87,9 @@ __all__ = [
     "MAX_DINKELBACH_ITERATIONS",
     "NEVER",
     "SOLVER_VERSION",
+    "CoffeeSolution",
     "DrinkingGrid",
+    "FrontierPoint",
     "DrinkingSolution",
     "GridSolution",
     "HistoryOptimum",
@@ -96,15 +101,19 @@ __all__ = [
     "cache_dir",
     "check_beer",
     "check_coffee",
+    "check_drinks",
+    "check_drinks_lifetime",
     "check_no_drinks",
     "coffee_check",
     "drink_floor",
     "drinking_rule_value",
+    "frontier_point",
     "optimum",
     "optimum_for",
     "oracle_regret",
     "sleep_rule_value",
     "solve",
+    "solve_coffee",
     "solve_drinking",
     "solve_history",
     "solve_params",
