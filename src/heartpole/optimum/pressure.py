@@ -172,13 +172,20 @@ class Sweep:
 
 
 def backward(
-    grid: PressureGrid, rate: float, scale: float, kept: int, fixed: np.ndarray | None = None, bonus: float = math.nan
+    grid: PressureGrid,
+    rate: float,
+    scale: float,
+    kept: int,
+    fixed: np.ndarray | None = None,
+    bonus: float = math.nan,
+    stop_at_gain: bool = False,
 ) -> Sweep:
     """Maximise ``E[work - rate * time - scale * penalty * extra]`` over every policy on the grid (``extra``: the
     summed risk above the floor ``max_steps * r(0)``, the expected attacks the drinks add), by a backward
     pass over all ``max_steps`` decisions (or, with ``fixed``, follow those rows: policy evaluation). With a
     ``bonus`` (not NaN) it checks drinks in every state and decision (``Sweep.gains``: see `_step`; a beer's
-    intoxication is credited ``bonus * (1 - decay_rate ** n)`` with ``n`` decisions left)."""
+    intoxication is credited ``bonus * (1 - decay_rate ** n)`` with ``n`` decisions left); ``stop_at_gain`` stops
+    the pass at the first decision where a drink gains (the figures are then those of a shorter episode)."""
     tab, params = grid.tables, grid.params
     shape = grid.shape
     arrays, out, stay, coffee = (np.zeros((3, *shape)) for _ in range(4))
@@ -193,6 +200,8 @@ def backward(
         later = bonus * (1.0 - params.decay_rate**n)  # what intoxication can add over n decisions, at most
         _step(arrays, out, stay, coffee, beer, gains, later, weight, forced, actions[row], *_kernel_tables(tab))
         arrays, out = out, arrays
+        if stop_at_gain and gains.max() > 0:
+            break
     start = arrays[:, 0, 0][:, tab["wake_index"]] @ tab["wake_weight"]
     work, time, attacks = (float(v) for v in start)
     floor = float(tab["floor"][0])
