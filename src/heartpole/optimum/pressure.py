@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -215,9 +216,36 @@ def _kernel_tables(tab: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
 
 
 @njit(cache=CACHE)
-def _step(nxt, out, stay, coffee, beer, gains, bonus, weight, forced, actions, work, shift, h, risk_stay, risk_sleep,
-          fade_low, fade_w, sleep_low, sleep_w, coffee_low, coffee_w, coffee_ok, wake_index, wake_weight, wake_work,
-          coffee_points, sleep_time, floor):  # fmt: skip
+def _step(
+    nxt: Any,
+    out: Any,
+    stay: Any,
+    coffee: Any,
+    beer: Any,
+    gains: Any,
+    bonus: Any,
+    weight: Any,
+    forced: Any,
+    actions: Any,
+    work: Any,
+    shift: Any,
+    h: Any,
+    risk_stay: Any,
+    risk_sleep: Any,
+    fade_low: Any,
+    fade_w: Any,
+    sleep_low: Any,
+    sleep_w: Any,
+    coffee_low: Any,
+    coffee_w: Any,
+    coffee_ok: Any,
+    wake_index: Any,
+    wake_weight: Any,
+    wake_work: Any,
+    coffee_points: Any,
+    sleep_time: Any,
+    floor: Any,
+) -> Any:
     """One decision back: ``out`` (work, time, attacks) for one more decision left than ``nxt``, and its actions
     (``stay``, ``coffee`` and ``beer`` are work space). With ``beer`` of length > 0 it also raises ``gains[0]`` to
     the most a coffee gains over the best other action in any state, and ``gains[1]`` to the most a beer (its
@@ -293,7 +321,16 @@ def _step(nxt, out, stay, coffee, beer, gains, bonus, weight, forced, actions, w
 
 
 @njit(cache=CACHE)
-def _drink(stay, out, h, coffee_low, coffee_w, coffee_ok, first, last):
+def _drink(
+    stay: Any,
+    out: Any,
+    h: Any,
+    coffee_low: Any,
+    coffee_w: Any,
+    coffee_ok: Any,
+    first: Any,
+    last: Any,
+) -> Any:
     """A drink's value: ``stay`` averaged over hypertension ``+ U(0, 0.3)`` (exact for the piecewise-linear
     interpolant) and alertness ``+ U(first, last) * step`` (the trapezoid rule over the lattice) into ``out``; NaN off
     the grid."""
