@@ -3,10 +3,11 @@
 With a low ``heart_attack_penalty`` (or proclivity) a coffee's alertness may be worth its blood pressure, so
 hypertension becomes part of the state. Intoxication is left out: the program's policies never drink beer (see
 docs/optimum.md for what that assumes). The objective is linearised as Dinkelbach's is: for a rate ``lam`` and a
-time scale ``c`` the program maximises ``E[work - lam * time - c * penalty * risk]``, ``risk`` the sum of the steps'
-heart-attack probabilities (the expected attacks), then ``lam <- E[work] / E[time]`` and ``c <- E[time]`` of its
-policy until they repeat. At that point the policy's ``E[work] / E[time] - penalty * E[attacks]`` cannot be raised
-to first order by any change of policy.
+time scale ``c`` the program maximises ``E[work - lam * time - c * penalty * extra]``, ``extra`` the sum of the
+steps' heart-attack probabilities above the floor ``r(0)`` that no policy avoids (the expected attacks the drinks
+add). [`heartpole.optimum.lifetime`][heartpole.optimum.lifetime] runs it at the no-drink rate and ``c =
+max_steps`` to show that no drink pays; [`heartpole.optimum.coffee`][heartpole.optimum.coffee] iterates ``lam`` and
+``c`` to a fixed point where drinks may pay.
 
 The grid follows the dynamics without interpolating them, as [`DrinkingGrid`][heartpole.optimum.drinking.DrinkingGrid]
 does for intoxication:
