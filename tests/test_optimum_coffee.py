@@ -130,3 +130,17 @@ def test_at_penalty_30_no_drink_pays_and_the_evaluator_confirms(capsys) -> None:
     assert data["coffee_best_gain"] < 0
     low, high = data["check_optimal"]["expected_ci95"]
     assert low - data["error_bound"] <= data["expected_return"] <= high + data["error_bound"]
+
+
+@pytest.mark.slow  # the coffee program's fixed point over 60 decisions and 20,000 episodes, about 30 s
+def test_the_coffee_policy_played_in_the_env_scores_the_programs_value() -> None:
+    """Over 60 decisions at penalty 10 coffee pays (about ten an episode): the policy played by Monte Carlo in the
+    env's dynamics (continuous draws, off-grid states rounded to the grid's nearest point) scores the program's value
+    of it within the Monte Carlo interval, widened by 5e-4 for the ratio (``E[work / time]`` against ``E[work] /
+    E[time]``) and the grid."""
+    from heartpole.optimum import solve_coffee
+
+    solved = solve_coffee(Params(max_steps=60, heart_attack_penalty=10.0), episodes=20000, error=False)
+    assert solved.coffees_per_episode > 5
+    assert abs(solved.expected_return - solved.grid_value) <= solved.return_ci + 5e-4
+    assert solved.lower < solved.expected_return and solved.grid_error != solved.grid_error  # error=False: nan
