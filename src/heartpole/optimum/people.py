@@ -166,6 +166,18 @@ class PeopleOptimum:
         threshold = table[who, np.broadcast_to(row, t.shape), np.minimum(t, table.shape[2] - 1)]
         return (t >= self.max_awake[who]) | (np.asarray(alertness, dtype=np.float64) < threshold)
 
+    def decide(self, person: np.ndarray, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
+        """Whether each env's person's optimal policy sleeps: [`OptimumSolution.decide`][heartpole.optimum.solution.
+        OptimumSolution.decide] of env ``i``'s person, which reads the whole observation (``obs`` ``(n, obs_dim)``,
+        ``person`` and ``decisions_left`` ``(n,)``)."""
+        who = np.asarray(person, dtype=np.int64)
+        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), who.shape)
+        sleeps = np.zeros(who.shape, dtype=bool)
+        for index in np.unique(who):
+            mine = who == index
+            sleeps[mine] = self.solutions[index].decide(obs[mine], left[mine])
+        return sleeps
+
     def regret(self, person: np.ndarray, expected_returns: np.ndarray) -> OracleRegret:
         """[`oracle_regret`][heartpole.optimum.people.oracle_regret] of episodes of these people."""
         return oracle_regret(self.expected_returns, person, expected_returns, self.margins)

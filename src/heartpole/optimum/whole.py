@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from heartpole.kernel import CACHE
-from heartpole.model import productivity
+from heartpole.model import ballmer, productivity
 from heartpole.parameters import Params
 
 from .common import max_awake
@@ -97,11 +97,8 @@ class HistoryOptimum:
         else:  # the time does not tell the sleeps, and they do not matter: every count has the centre's values
             sleeps = np.full(len(obs), -1, dtype=np.int64)
         w = obs[:, 0] + drained[t]
-        # the work after each further half-hour of the day, for every env
-        columns = np.minimum(t[:, None] + np.arange(awake)[None, :], awake - 1)
-        worked = productivity(w[:, None] - drained[columns], 0.0)
-        later = obs[:, 5, None] + np.concatenate([np.zeros((len(w), 1)), np.cumsum(worked, axis=1)], axis=1)
-        return _greedy(later, t, n, sleeps, params.max_steps, params.sleep_half_hours, awake, *self._tables())
+        day = (w, obs[:, 5], drained, float(ballmer(0.0)), awake)
+        return _greedy(*day, t, n, sleeps, params.max_steps, params.sleep_half_hours, *self._tables())
 
     @functools.cached_property
     def _day(self) -> tuple[int, np.ndarray]:
@@ -390,14 +387,23 @@ def _program(steps: int, rest: int, by_length: Any, centre: Any, band: int, geom
 
 
 @njit(cache=CACHE)
+def _sober_work(alertness: float, sober: float) -> float:
+    """`heartpole.model.productivity` without intoxication (``sober`` is ``ballmer(0)``), term by term as there."""
+    return alertness * (1.0 - 1.0 / (1.0 + np.exp(-(alertness - 0.0 - 3.0)))) * sober
+
+
+@njit(cache=CACHE)
 def _greedy(
-    later: Any,
+    w: Any,
+    work: Any,
+    drained: Any,
+    sober: float,
+    awake: int,
     t: Any,
     n: Any,
     sleeps: Any,
     steps: Any,
     rest: Any,
-    awake: Any,
     centre: Any,
     band: Any,
     work_centre: Any,
@@ -407,28 +413,52 @@ def _greedy(
     slopes: Any,
 ) -> Any:
     """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
-    end), by the upper envelope of the lower lines; ``later[e, j]`` is env ``e``'s work after ``j`` more half-hours
-    of its day."""
+    end), by the upper envelope of the lower lines. Env ``e`` woke at alertness ``w[e]`` (``drained`` since), has
+    ``work[e]`` done; its work after ``j`` more half-hours adds the productivity of each."""
     decide = np.zeros(len(t), dtype=np.bool_)
+    tables = (centre, band, work_centre, work_scale, offsets, lines, slopes)
     for e in range(len(t)):
         if t[e] >= awake - 1:
             decide[e] = True
             continue
-        time = steps + rest * sleeps[e]
-        best_later = later[e, n[e]] / time if n[e] + t[e] <= awake - 1 else -np.inf
-        now = -np.inf
-        for j in range(min(n[e] - 1, awake - 1 - t[e]) + 1):
-            after = n[e] - j - 1
-            b = band if sleeps[e] < 0 else sleeps[e] + 1 - centre[after] + band
-            if b < 0 or b > 2 * band:
-                continue
-            value = -np.inf
-            for i in range(len(offsets)):
-                x_i = work_centre[after, b] + work_scale[after, b] * offsets[i]
-                value = max(value, lines[after, b, i] + slopes[after, b, i] * (later[e, j] - x_i))
-            if j == 0:
-                now = value
-            elif value > best_later:
-                best_later = value
+        best_later = -np.inf
+        if n[e] + t[e] <= awake - 1:  # working to the end is a choice
+            total = work[e]
+            for j in range(n[e]):
+                total += _sober_work(w[e] - drained[t[e] + j], sober)
+            best_later = total / (steps + rest * sleeps[e])
+        later = work[e]
+        now = _line_envelope(later, n[e] - 1, sleeps[e], *tables)
         decide[e] = now >= best_later
+        # a later sleep that beats sleeping now settles it (the first one found: most decisions are "work on")
+        for j in range(1, min(n[e] - 1, awake - 1 - t[e]) + 1):
+            if not decide[e]:
+                break
+            later += _sober_work(w[e] - drained[t[e] + j - 1], sober)
+            decide[e] = now >= _line_envelope(later, n[e] - j - 1, sleeps[e], *tables)
     return decide
+
+
+@njit(cache=CACHE)
+def _line_envelope(
+    x: float,
+    after: int,
+    sleeps: int,
+    centre: Any,
+    band: int,
+    work_centre: Any,
+    work_scale: Any,
+    offsets: Any,
+    lines: Any,
+    slopes: Any,
+) -> float:
+    """The best lower line at the day start ``after`` decisions left with ``x`` work done (``-inf`` outside the band
+    of sleeps so far; ``sleeps < 0``: the centre's)."""
+    b = band if sleeps < 0 else sleeps + 1 - centre[after] + band
+    if b < 0 or b > 2 * band:
+        return -np.inf
+    value = -np.inf
+    for i in range(len(offsets)):
+        x_i = work_centre[after, b] + work_scale[after, b] * offsets[i]
+        value = max(value, lines[after, b, i] + slopes[after, b, i] * (x - x_i))
+    return value
