@@ -4,14 +4,14 @@
 [`People`][heartpole.people.People] once, through [`optimum`][heartpole.optimum.optimum] and its cache
 (memory and disk), several at a time in worker processes. The person's optimal expected return is the
 quantity [`EvaluationResult.with_regret`][heartpole.results.EvaluationResult.with_regret] compares a
-policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grid's error
-and what the history it does not see was measured to be worth).
+policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grids' errors
+and what any policy may add to the played one).
 
 [`oracle_regret`][heartpole.optimum.people.oracle_regret] is then the mean over episodes of (the episode's
 person's optimal expected return - the policy's expected-risk return in that episode), with a 95% Student-t
-interval over episodes widened by the optimum's margin. The stacked thresholds of
-[`PeopleOptimum`][heartpole.optimum.people.PeopleOptimum] act as the ``oracle`` policy: each env sleeps as
-its own person's optimal policy would.
+interval over episodes widened by the optimum's margin.
+[`PeopleOptimum.decide`][heartpole.optimum.people.PeopleOptimum.decide] acts as the ``oracle`` policy: each env
+sleeps as its own person's optimal policy would.
 """
 
 from __future__ import annotations

@@ -119,8 +119,10 @@ class HistoryOptimum:
 
 
 HISTORY_HORIZON = 3000
-"""The longest horizon [`history_worth`][heartpole.optimum.whole.history_worth] solves; longer ones take its worth
-there (the history's worth falls with the horizon: 4.3e-5 at 300 decisions, 1.2e-5 at 1,000, 0.3e-5 at 3,000 on v0)."""
+"""The longest horizon whose history-aware optimum a solution plays, and that
+[`history_worth`][heartpole.optimum.whole.history_worth] solves; longer ones play the sleep-timing policy and take the
+history's worth at this horizon (it falls with the horizon: 4.3e-5 at 300 decisions, 1.2e-5 at 1,000, 0.3e-5 at 3,000
+on v0). A longer program would take time and memory growing with the horizon (about 3 x 40 MB of tables here)."""
 
 
 def history_worth(params: Params) -> float:
