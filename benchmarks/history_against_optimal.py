@@ -6,7 +6,8 @@ its own work so far implies, against the solution's played policy, on ``--episod
 waking draws). The optimum is optimal over every policy that sees the observation, so the gain's 95% interval should
 hold nothing above the margin. One setting at a time, one core: long (minutes a setting at 200,000 episodes).
 
-``python benchmarks/history_against_optimal.py --people v0 Cleo --steps 300 1000 --episodes 200000``
+``python benchmarks/history_against_optimal.py --people v0 Cleo --steps 300 1000 --episodes 200000``;
+``--margins``: only each setting's margin and its parts (seconds a setting, once solved), no episodes.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from heartpole.optimum import optimum
+from heartpole.optimum import NotCoveredError, optimum
 from heartpole.optimum.history import history_gain
 from heartpole.people import DEFAULT_COHORT
 
@@ -35,13 +36,36 @@ def person_kwargs(name: str) -> dict[str, object]:
     raise SystemExit(f"unknown person {name!r}: v0 or one of the default cohort ({names})")
 
 
+def margins(people: list[str], horizons: list[int]) -> None:
+    """Each setting's optimum, what the history adds, and the margin's parts."""
+    print("| setting | expected return | history's gain | grid errors | gap (upper - lower) | margin |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for name in people:
+        for steps in horizons:
+            try:
+                solution = optimum("HeartPole-v0", {**person_kwargs(name), "max_steps": steps})
+            except NotCoveredError:
+                print(f"| {name}, {steps} | not covered (drinking may pay) | | | | |", flush=True)
+                continue
+            gain = f"{solution.history.gain:.2e}" if solution.history is not None else "not played"
+            print(
+                f"| {name}, {steps} | {solution.expected_return:.7f} | {gain} | {solution.error_bound:.1e} "
+                f"| {solution.history_worth:.1e} | {solution.margin:.1e} |",
+                flush=True,
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--people", nargs="+", default=["v0"], help="v0 and/or default-cohort names")
     parser.add_argument("--steps", type=int, nargs="+", default=[300, 400, 701, 1000], help="horizons (max_steps)")
     parser.add_argument("--episodes", type=int, default=200_000, help="paired episodes a setting")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--margins", action="store_true", help="only the margins and their parts, no episodes")
     args = parser.parse_args()
+    if args.margins:
+        margins(args.people, args.steps)
+        return
     print(f"{args.episodes:,} paired episodes a setting, seed {args.seed}")
     print("| setting | optimum's expected return | margin | old rule's gain over `optimal` [95%] | verdict | s |")
     print("|---|---:|---:|---:|---|---:|")
