@@ -245,6 +245,8 @@ def test_a_million_decisions_take_little_memory_and_a_small_cache(tmp_path, monk
         tracemalloc.stop()
     assert peak < 25e6, f"{peak / 1e6:.0f} MB"  # measured: 10 MB
     assert solution.error_bound < 1e-6 and len(solution.thresholds) < 2000
+    # beyond HISTORY_HORIZON: the sleep-timing policy is played, the history's worth (at 3,000 decisions) stated
+    assert solution.history is None and 0 < solution.history_worth < 1e-5
     assert solution.expected_heart_attacks == pytest.approx(1e6 * 0.5 / (1 + math.exp(6)), rel=1e-12)
     assert 0.3244 < solution.expected_score < 0.3245  # the long-run rate; the end-game hardly counts
     files = list((tmp_path / "optimum").glob("*/optimum.*"))
