@@ -328,6 +328,20 @@ def test_the_optimal_policy_reads_the_work_done_and_the_time_elapsed(v0: Optimum
     assert v0.history is not None and v0.history.gain > 0
 
 
+def test_outside_the_solved_region_optimal_plays_the_sleep_timing_policy(v0: OptimumSolution) -> None:
+    """Far from the history program's region (another person's episode, say: 150 units of work or 45 sleeps where
+    v0 has 329 and 31) the lines mean little, and ``optimal`` sleeps by the sleep-timing thresholds."""
+    assert v0.history is not None
+    obs = np.zeros((151, 6), dtype=np.float32)
+    obs[:, 0], obs[:, 3] = np.linspace(0.30, 0.45, 151), 16
+    for work, sleeps in ((150.0, 31), (325.0, 45)):
+        obs[:, 4], obs[:, 5] = 500 + 16 * sleeps, work
+        assert not v0.history.inside(obs, np.full(151, 500)).any()
+        np.testing.assert_array_equal(v0.decide(obs, 500), v0.sleeps(obs[:, 0], obs[:, 3], 500))
+    obs[:, 4], obs[:, 5] = 500 + 16 * 31, 325.0
+    assert v0.history.inside(obs, np.full(151, 500)).all()
+
+
 def test_the_optimal_policy_needs_the_decisions_left() -> None:
     policy = heartpole.load_policy("optimal")
     obs = np.array([[0.3, 0, 0, 15, 15, 10]], dtype=np.float32)

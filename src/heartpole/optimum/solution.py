@@ -93,12 +93,15 @@ class OptimumSolution:
 
     def decide(self, obs: np.ndarray, decisions_left: int | np.ndarray) -> np.ndarray:
         """Whether the played policy sleeps, for no-drink observations ``(envs, obs_dim)`` and the decisions left
-        (1..max_steps): `history`'s decision, else [`sleeps`][heartpole.optimum.solution.OptimumSolution.sleeps]'."""
+        (1..max_steps): `history`'s decision where the observation lies in its solved region
+        ([`HistoryOptimum.inside`][heartpole.optimum.whole.HistoryOptimum.inside]), else
+        [`sleeps`][heartpole.optimum.solution.OptimumSolution.sleeps]' (another person's episodes leave the region)."""
         obs = np.asarray(obs)
         left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
-        if self.history is not None:
-            return self.history.sleeps(obs, left)
-        return self.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
+        timing = self.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
+        if self.history is None:
+            return timing
+        return np.where(self.history.inside(obs, left), self.history.sleeps(obs, left), timing)
 
     @property
     def max_awake(self) -> int:

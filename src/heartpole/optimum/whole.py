@@ -92,13 +92,34 @@ class HistoryOptimum:
         params = self.params
         awake, drained = self._day
         t = np.minimum(obs[:, 3].round().astype(np.int64), awake - 1)
-        if params.sleep_half_hours:
-            sleeps = np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
-        else:  # the time does not tell the sleeps, and they do not matter: every count has the centre's values
-            sleeps = np.full(len(obs), -1, dtype=np.int64)
+        sleeps = self._sleeps_so_far(obs, n)
         w = obs[:, 0] + drained[t]
         day = (w, obs[:, 5], drained, float(ballmer(0.0)), awake)
         return _greedy(*day, t, n, sleeps, params.max_steps, params.sleep_half_hours, *self._tables())
+
+    def inside(self, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
+        """Whether each observation lies in the solved region: at the day start a sleep now would begin, its sleeps so
+        far within the band about their typical count and its work within the work grid. Outside (another person's
+        episode, say) the lines are extrapolated far from where they were solved, and `sleeps` means little."""
+        obs = np.asarray(obs, dtype=np.float64)
+        n = np.asarray(decisions_left, dtype=np.int64)
+        sleeps = self._sleeps_so_far(obs, n)
+        if not self.params.sleep_half_hours:
+            return np.ones(len(obs), dtype=bool)
+        after = np.clip(n - 1, 0, len(self.centre) - 1)
+        b = sleeps + 1 - self.centre[after] + self.band
+        row = np.clip(b, 0, 2 * self.band)
+        low = self.work_centre[after, row] + self.work_scale[after, row] * self.offsets[0]
+        high = self.work_centre[after, row] + self.work_scale[after, row] * self.offsets[-1]
+        return (b >= 0) & (b <= 2 * self.band) & (obs[:, 5] >= low) & (obs[:, 5] <= high)
+
+    def _sleeps_so_far(self, obs: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The sleeps so far that the time elapsed and the decisions left tell; -1 where sleeps take no time (the
+        time does not tell them, and they do not matter: every count has the centre's values)."""
+        params = self.params
+        if not params.sleep_half_hours:
+            return np.full(len(obs), -1, dtype=np.int64)
+        return np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
 
     @functools.cached_property
     def _day(self) -> tuple[int, np.ndarray]:
