@@ -52,7 +52,7 @@ def test_the_measurement_sees_a_gain_where_there_is_one() -> None:
     solution = optimum("HeartPole-v0")
     worse = dataclasses.replace(solution, thresholds=solution.thresholds - 0.05, history=None)
     measured = history_gain(worse, episodes=5_000, seed=1)
-    assert measured.ci95[0] > 100 * solution.margin, measured
+    assert measured.ci95[0] > 10 * solution.margin, measured
 
 
 def test_history_gain_wants_a_solution() -> None:
