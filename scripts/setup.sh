@@ -19,8 +19,9 @@ if [[ ",$extras," =~ ,(all|train|ray|test), ]]; then  # the extras that bring St
   .venv/bin/python -m pip install -q torch==2.13.0
 fi
 .venv/bin/python -m pip install -q -e ".[$extras]"
-# Compile the steps and the optimum's history program once into numba's disk cache (beside the sources), as pip
-# compiles .pyc files: test workers and the first commands then load them instead of each compiling the same code.
+# Compile the steps and the optimum's history program and policy once into numba's disk cache (beside the sources),
+# as pip compiles .pyc files: test workers and the first commands then load them instead of each compiling the same
+# code.
 .venv/bin/python -W ignore -c '
 import warnings, gymnasium as gym, heartpole
 warnings.simplefilter("ignore")  # after gymnasium, which sets its own filters: v0 is "out of date"
@@ -31,5 +32,7 @@ for env_id in ("HeartPole-v0", "HeartPole-v1"):
             env.step(env.action_space.sample())
 from heartpole.optimum import solve_history
 from heartpole.parameters import Params
-solve_history(Params(max_steps=40), grid=4, points=3, policy=False)  # the history program (half a minute to compile)
+import numpy as np
+solved = solve_history(Params(max_steps=40), grid=4, points=3)  # the history program (half a minute to compile)
+solved.sleeps(np.zeros((1, 6)), np.array([40]))  # and its policy, which optimal plays
 '

@@ -1,4 +1,5 @@
-"""heartpole.optimum.history: a sleep rule that reads the work and time so far, measured against the optimum."""
+"""heartpole.optimum.history: a sleep rule that reads the work and time so far, measured against the optimum, which
+sees them too (issue 42): it gains nothing beyond the optimum's margin."""
 
 from __future__ import annotations
 
@@ -32,25 +33,26 @@ GUS_300 = {
 
 @pytest.mark.slow
 @pytest.mark.parametrize("env_kwargs", [{}, KAI, GUS_300, CLEO_400], ids=["v0", "Kai", "Gus-300", "Cleo-400"])
-def test_what_the_history_gains_is_within_the_margin_the_regrets_are_widened_by(env_kwargs: dict[str, object]) -> None:
-    """The history-aware rule against ``optimal`` on paired episodes: its gain is not significantly above the solved
-    `history_worth`, at 1,000 decisions and at the short horizons where it is largest, and the optimum's own score on
-    these episodes matches its exact expected score."""
+def test_the_history_rule_gains_nothing_beyond_the_margin_over_optimal(env_kwargs: dict[str, object]) -> None:
+    """The history-aware rule against ``optimal`` (the history-aware optimum) on 40,000 paired episodes: its gain is
+    not significantly above the margin, at 1,000 decisions and at the short horizons where the history is worth most
+    (it gained 3.8e-5 to 5.1e-5 there over the sleep-timing policy), and the optimum's own score on these episodes
+    matches its expected score within 4 standard errors (about 3e-4)."""
     solution = optimum("HeartPole-v0", env_kwargs)
     measured = history_gain(solution, episodes=40_000, seed=1)
-    assert measured.ci95[0] <= solution.history_worth, measured
-    assert solution.margin == solution.error_bound + solution.history_worth
+    assert solution.history is not None
+    assert measured.ci95[0] <= solution.margin < 2.5e-6, (measured, solution.margin)
     assert abs(measured.optimal_score - solution.expected_score) < 1e-3, measured  # the paired simulator is v0's
 
 
 @pytest.mark.slow
 def test_the_measurement_sees_a_gain_where_there_is_one() -> None:
-    """Against a worse rule (the optimum's thresholds 0.05 too low: it stays awake too long) the history-aware
-    rule's gain is far above the solved `history_worth`: the measurement is able to fail."""
+    """Against a worse rule (the sleep-timing thresholds 0.05 too low: it stays awake too long) the history-aware
+    rule's gain is far above the margin: the measurement is able to fail."""
     solution = optimum("HeartPole-v0")
-    worse = dataclasses.replace(solution, thresholds=solution.thresholds - 0.05)
+    worse = dataclasses.replace(solution, thresholds=solution.thresholds - 0.05, history=None)
     measured = history_gain(worse, episodes=5_000, seed=1)
-    assert measured.ci95[0] > 10 * solution.history_worth, measured
+    assert measured.ci95[0] > 10 * solution.margin, measured
 
 
 def test_history_gain_wants_a_solution() -> None:
@@ -59,8 +61,8 @@ def test_history_gain_wants_a_solution() -> None:
 
 
 def test_regret_intervals_are_widened_by_the_margin() -> None:
-    """Evaluation's regret interval: the expected-risk interval reflected, widened by the grid's error and the
-    history's solved worth."""
+    """Evaluation's regret interval: the expected-risk interval reflected, widened by the margin: the grids' error and
+    the history program's gap (what any policy may add to the played one)."""
     from heartpole.evaluation import evaluate
 
     solution = optimum("HeartPole-v0")
@@ -68,4 +70,6 @@ def test_regret_intervals_are_widened_by_the_margin() -> None:
     low, high = result.expected_ci95
     expected = (solution.expected_return - high - solution.margin, solution.expected_return - low + solution.margin)
     assert result.regret_ci95 == pytest.approx(expected, abs=1e-12)
-    assert solution.margin > solution.history_worth > solution.error_bound
+    assert solution.margin == solution.error_bound + solution.history_worth
+    assert solution.history is not None and solution.history_worth == solution.history.gap
+    assert 0 < solution.history.gap < 1e-6 and solution.error_bound < 2e-6

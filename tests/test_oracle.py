@@ -32,7 +32,11 @@ def _observations(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.nda
     obs = np.zeros((n, 6), dtype=np.float32)
     obs[:, 0] = rng.uniform(-0.5, 2.0, n)  # alertness
     obs[:, 3] = rng.integers(0, 60, n)  # time since slept
-    return obs, rng.integers(1, 1001, n), rng.integers(0, len(TRIO.cohort), n)
+    left = rng.integers(1, 1001, n)
+    done = 1000 - left
+    obs[:, 4] = done + 16 * np.round(done / 17 + rng.integers(-2, 3, n))  # time elapsed: about a sleep a day
+    obs[:, 5] = done * rng.uniform(0.6, 0.7, n)  # work done (the optimum reads both)
+    return obs, left, rng.integers(0, len(TRIO.cohort), n)
 
 
 def test_the_oracle_acts_as_each_persons_optimal_policy(trio: PeopleOptimum) -> None:
@@ -84,3 +88,18 @@ def test_oracle_is_offered_only_with_a_finite_cohort() -> None:
     assert "oracle" not in available_builtins("HeartPole-v0")
     assert "oracle" not in available_builtins("HeartPole-v0", {"people": People(decay_rate=Uniform(0.93, 0.97))})
     assert available_builtins("HeartPole-v0", {"people": TRIO})[-2:] == ["optimal", "oracle"]
+
+
+def test_the_jax_oracle_plays_the_numpy_oracles_episodes(trio: PeopleOptimum) -> None:
+    """The JAX ``oracle`` calls the NumPy one (the history-aware optimum decides in float64): the same episodes as
+    the NumPy evaluator's, but for the few that float32 rounding of the env's ``exp`` moves (as ``optimal``'s)."""
+    pytest.importorskip("jax")
+    from heartpole.evaluation import evaluate
+    from heartpole.jax.evaluation import evaluate as jax_evaluate
+    from tests.test_jax_evaluation import same_episodes
+
+    kwargs = {"people": TRIO, "max_steps": 1000}
+    numpy = evaluate("oracle", episodes=300, seed=3, env_kwargs=kwargs)
+    device = jax_evaluate("oracle", episodes=300, seed=3, env_kwargs=kwargs)
+    assert same_episodes(numpy, device) >= 0.99
+    assert abs(numpy.oracle_regret - device.oracle_regret) < 1e-4

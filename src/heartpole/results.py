@@ -83,8 +83,8 @@ class EvaluationResult:
         """This result with its regret: ``optimal_return`` minus the expected-risk return.
 
         The 95% interval is the expected-risk interval reflected, widened by ``error_bound``: the optimum's
-        [`margin`][heartpole.optimum.solution.OptimumSolution.margin] (its grid's error and what the history it does
-        not see is worth) where evaluation computes the regret.
+        [`margin`][heartpole.optimum.solution.OptimumSolution.margin] (its grids' errors and what any policy may add
+        to it) where evaluation computes the regret.
         """
         low, high = self.expected_ci95
         interval = (optimal_return - high - error_bound, optimal_return - low + error_bound)

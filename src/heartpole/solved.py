@@ -22,7 +22,7 @@ SOLVED_REGRET = 0.01
 """The "solved" bar as a regret: the upper end of the 95% regret interval over 2,000 evaluation episodes at
 most 0.01 of expected return. Why 0.01: one drink an episode already costs at least 0.018 (the drink floor of
 the optimum), so the bar rules out habitual drinking; a score 0.01 below the optimum's 0.327 (3%) is the most
-sleep timing may lose. ``expert`` (0.00075) and the trained PPO agents of the README (0.002-0.006) meet it; a
+sleep timing may lose. ``expert`` (0.00076) and the trained PPO agents of the README (0.002-0.006) meet it; a
 policy that sleeps every half-hour (0.28) or a PPO agent trained on the telescoping score (0.059) do not. For a
 policy that never drinks the 2,000-episode interval is about +-0.0004, 25 times narrower than the bar, so the
 verdict does not hinge on the evaluation's luck. The previous bar (heart attacks <= 1.30 and score >= 0.30)

@@ -257,16 +257,19 @@ def format_solution(solution: OptimumSolution, checks: Mapping[str, EvaluationRe
     from heartpole.reporting import has_interval, missing_notes
 
     p = solution.params
+    if solution.history is not None:
+        note = f"+- {solution.error_bound:.1e} (grids); any policy adds <= {solution.history_worth:.1e} (solved)"
+        gain = [["seeing the work and time so far adds", f"{solution.history.gain:.1e}", "to the sleep-timing policy"]]
+    else:
+        note = f"+- {solution.error_bound:.1e} (grid); history worth <= {solution.history_worth:.1e} (solved)"
+        gain = []
     rows = [
-        [
-            "expected return (optimum)",
-            f"{solution.expected_return:.5f}",
-            f"+- {solution.error_bound:.1e} (grid); history worth <= {solution.history_worth:.1e} (solved)",
-        ],
+        ["expected return (optimum)", f"{solution.expected_return:.5f}", note],
         ["expected score (work / time)", f"{solution.expected_score:.5f}", ""],
+        *gain,
         ["expected heart attacks / episode", f"{solution.expected_heart_attacks:.5f}", "the floor: never drink"],
-        ["sleeps / episode", f"{solution.expected_sleeps:.2f}", ""],
-        ["Dinkelbach rate E[work] / E[time]", f"{solution.rate:.5f}", ""],
+        ["sleeps / episode", f"{solution.expected_sleeps:.2f}", "the sleep-timing policy's"],
+        ["Dinkelbach rate E[work] / E[time]", f"{solution.rate:.5f}", "the sleep-timing policy's"],
         ["each drink costs at least", f"{solution.drink_floor:.4f}", "of expected return"],
         ["a coffee's best gain, any state", f"{solution.coffee_best_gain:.2f}", "units of work (< 0: never pays)"],
     ]

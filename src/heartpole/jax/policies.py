@@ -5,9 +5,10 @@ expert's rate and nap thresholds, the optimum's sleep thresholds, the actions' i
 written twice; only the few lines that apply them are, on ``jax.numpy``. Every one is an `Act`: a function of the
 observations, the decisions left, each env's person and a key.
 
-Deterministic built-ins choose the NumPy built-ins' very actions for the same observations (the optimum's float64
-thresholds are rounded up to float32, which decides every float32 alertness alike). ``random`` draws from ``key``,
-so its actions are not the NumPy ``random``'s.
+Deterministic built-ins choose the NumPy built-ins' very actions for the same observations (the sleep-timing optimum's
+float64 thresholds are rounded up to float32, which decides every float32 alertness alike; the history-aware optimum,
+which ``optimal`` and ``oracle`` play up to 3,000 decisions, is the NumPy policy called from JAX). ``random`` draws
+from ``key``, so its actions are not the NumPy ``random``'s.
 """
 
 from __future__ import annotations
@@ -51,12 +52,33 @@ def builtin_act(name: str, env_id: str, env_kwargs: Mapping[str, Any]) -> Act:
         return _expert(policy)
     if isinstance(policy, OptimalPolicy):
         solution = policy.solution
+        if solution.history is not None:
+            return _on_host(lambda obs, left, person: policy(obs, left))
         thresholds = _rounded_up(solution.thresholds[None])
         return _thresholds(thresholds, np.array([solution.max_awake]), policy.sleep, policy.nothing, personal=False)
     if isinstance(policy, OraclePolicy):
         optimum = policy.optimum
+        if any(s.history is not None for s in optimum.solutions):
+            return _on_host(lambda obs, left, person: policy(obs, left, person=person))
         return _thresholds(_rounded_up(optimum.thresholds), optimum.max_awake, policy.sleep, policy.nothing, True)
     raise ValueError(f"the built-in policy {name!r} has no JAX version")  # pragma: no cover - every built-in has
+
+
+def _on_host(decide: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]) -> Act:
+    """A NumPy policy called from JAX (``jax.pure_callback``): the history-aware optimum's decisions compare values
+    of lines in float64, which float32 arithmetic would decide otherwise near ties, so the JAX ``optimal`` and
+    ``oracle`` call the NumPy policy itself on the same float32 observations and choose its very actions (a host
+    round trip each step: slower than a traced rule, on an accelerator most of all)."""
+
+    def on_host(obs: np.ndarray, left: np.ndarray, person: np.ndarray) -> np.ndarray:
+        actions = decide(np.asarray(obs), np.full(len(obs), int(left)), np.asarray(person))
+        return np.asarray(actions, dtype=np.int32)
+
+    def act(obs: jax.Array, left: jax.Array, person: jax.Array, key: jax.Array) -> jax.Array:
+        shape = jax.ShapeDtypeStruct((obs.shape[0],), jnp.int32)
+        return jax.pure_callback(on_host, shape, obs, left, person)
+
+    return act
 
 
 def _rounded_up(thresholds: np.ndarray) -> jax.Array:

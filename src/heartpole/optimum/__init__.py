@@ -41,14 +41,17 @@ naps, tea, exercise and cannabis), extra state variables, ``heart_attack_procliv
 ``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where neither
 [`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] nor the check over a drink's whole lifetime of blood
 pressure ([`check_drinks`][heartpole.optimum.lifetime.check_drinks], which covers v0 at penalties 10 to 100 and
-proclivity 0.2) rules drinks out. The solved policy sees ``(n,
-alertness, t)``, not the work and sleeps so far: it is the best of the policies that see those. The optimum over
-every policy, which also sees the work and sleeps so far, is solved by
-[`solve_history`][heartpole.optimum.whole.solve_history] (a program over day starts, its policy's exact value below
-and a bound above); what it adds is
-[`OptimumSolution.history_worth`][heartpole.optimum.solution.OptimumSolution] (about 1.2e-5 on v0, 4.3e-5 at 300
-decisions), and regret intervals are widened by it besides the grid's error
-([`OptimumSolution.margin`][heartpole.optimum.solution.OptimumSolution.margin]).
+proclivity 0.2) rules drinks out.
+
+The optimum over every policy (issue 42). The program above sees ``(n, alertness, t)``; the score is a ratio, so the
+work and sleeps so far are worth a little more (9.3e-6 on v0, 4e-5 at 300 decisions).
+[`solve_history`][heartpole.optimum.whole.solve_history] solves the whole problem over day starts, its policy's value
+below and a bound above; up to [`HISTORY_HORIZON`][heartpole.optimum.whole.HISTORY_HORIZON] decisions the solution
+plays that policy ([`OptimumSolution.decide`][heartpole.optimum.solution.OptimumSolution.decide]), its expected
+return is the sleep-timing optimum's plus the history program's gain, and its
+[`margin`][heartpole.optimum.solution.OptimumSolution.margin] is the solver's own error: the grids' errors and the
+program's gap (1.7e-6 on v0). Beyond that horizon it plays the sleep-timing policy and the margin states what the
+history is worth ([`history_worth`][heartpole.optimum.whole.history_worth]).
 
 Also here: [`sleep_rule_value`][heartpole.optimum.sleep.sleep_rule_value], the exact expected return of any no-drink
 sleep rule (``expert``'s regret without sampling), and [`solve_drinking`][heartpole.optimum.drinking.solve_drinking], a
@@ -58,11 +61,11 @@ not a certified optimum.
 
 Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
 program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
-never pay), `.drinking` (proclivity 0), `.history` (what the work and time so far are worth, measured),
-`.whole` (the optimum over every policy, history included, with its bounds), `.pressure` (the program over
-alertness, blood pressure and time awake, with coffee), `.lifetime` (why drinks never pay, over their whole
-lifetime), `.coffee` (the coffee program's policy where drinks may pay), `.point` (a point of the productivity-risk
-frontier), `.common` (what they share).
+never pay), `.drinking` (proclivity 0), `.history` (a history-aware rule measured against the optimum),
+`.whole` (the optimum over every policy, history included, with its bounds), `.played` (the history program a
+solution plays, and its storage), `.pressure` (the program over alertness, blood pressure and time awake, with
+coffee), `.lifetime` (why drinks never pay, over their whole lifetime), `.coffee` (the coffee program's policy where
+drinks may pay), `.point` (a point of the productivity-risk frontier), `.common` (what they share).
 """
 
 from __future__ import annotations

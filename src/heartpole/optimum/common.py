@@ -10,9 +10,10 @@ import numpy as np
 from heartpole.model import alertness_decay, productivity
 from heartpole.parameters import Params
 
-SOLVER_VERSION = 4
+SOLVER_VERSION = 5
 """Bumped whenever a saved solution would mean something else; caches of other versions are solved again
-(3: the thresholds end where the policy has settled, not at ``max_steps``; 4: the history's worth is solved)."""
+(3: the thresholds end where the policy has settled, not at ``max_steps``; 4: the history's worth is solved;
+5: the solution plays the history-aware optimum and stores its tables)."""
 DEFAULT_GRID = 400
 SETTLE_TOLERANCE = 1e-13
 """A backward recursion has settled when its values, less their value at one state, change by at most this

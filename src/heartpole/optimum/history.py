@@ -6,16 +6,16 @@ episode has gone: an episode that has worked well so far has a higher final scor
 little earlier. [`history_gain`][heartpole.optimum.history.history_gain] builds such a rule and measures what it
 gains over the optimum: at each decision it takes the thresholds the sleep-timing program gives at the rate its own
 work so far implies, ``(work so far + rate x F) / (time so far + F)`` with ``F`` the expected time still to come,
-interpolated between programs solved at rates around the optimum's. Both rules run on the same episodes (the same
+interpolated between programs solved at rates around the optimum's. It is measured against the solution's played
+policy ([`OptimumSolution.decide`][heartpole.optimum.solution.OptimumSolution.decide]: the history-aware optimum up to
+3,000 decisions, where it should gain nothing). Both rules run on the same episodes (the same
 waking alertness for each one's ``k``-th day), in float64, so their difference is measured far more precisely than
-either score: 1.2e-5 of expected return on v0, 0.3e-5 to 2.0e-5 on the default cohort's people; the published
-regret intervals are widened by [`OptimumSolution.history_worth`][heartpole.optimum.solution.OptimumSolution], solved by
-[`heartpole.optimum.whole`][heartpole.optimum.whole], which must lie above these gains. No
-drinks: their heart-attack part is the floor for both rules, so the difference of returns is the difference of
-scores.
+either score: against the sleep-timing policy it gained 1.2e-5 of expected return on v0 and 0.3e-5 to 2.0e-5 on the
+default cohort's people; against the played optimum it must gain nothing beyond the solution's
+[`margin`][heartpole.optimum.solution.OptimumSolution.margin]. No drinks: their heart-attack part is the floor for
+both rules, so the difference of returns is the difference of scores.
 
-This is a measured gain of one history-aware rule, a lower bound on what history is worth: a check of
-[`heartpole.optimum.whole`][heartpole.optimum.whole]'s solved worth from outside it.
+This is a check of [`heartpole.optimum.whole`][heartpole.optimum.whole]'s solved optimum from outside it.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from heartpole.model import productivity
+from heartpole.model import ALERTNESS, TIME_ELAPSED, TIME_SINCE_SLEPT, WORK_DONE, productivity
 from heartpole.parameters import Params
 
 from .sleep import _DayModel
@@ -79,7 +79,6 @@ def history_gain(
     params = solution.params
     rates = solution.rate + RATE_OFFSETS
     family = history_thresholds(params, solution.grid, rates)
-    optimal = solution.thresholds
     steps, rest = params.max_steps, params.sleep_half_hours
     mean_time = steps + rest * solution.expected_sleeps
     low, high = params.wake_alertness
@@ -106,10 +105,12 @@ def history_gain(
                     lo, hi = family[below, row, column], family[below + 1, row, column]
                     with np.errstate(invalid="ignore"):  # an infinite threshold (all sleep, or none) stays one
                         threshold = np.where(np.isfinite(lo + hi), lo + (position - below) * (hi - lo), lo)
+                    alertness = w - drained[np.minimum(t, awake - 1)]
+                    sleep = (t >= awake) | (alertness < threshold)
                 else:
-                    threshold = optimal[min(n, len(optimal) - 1), np.minimum(t, awake - 1)]
-                alertness = w - drained[np.minimum(t, awake - 1)]
-                sleep = (t >= awake) | (alertness < threshold)
+                    sleep = _played(
+                        solution, w - drained[np.minimum(t, awake - 1)], t, steps - n + rest * sleeps, work, n
+                    )
                 sleeps += sleep
                 w = np.where(sleep, wakes[np.arange(size), np.minimum(sleeps, days - 1)], w)
                 t = np.where(sleep, 0, t)
@@ -122,3 +123,13 @@ def history_gain(
     gain = float(difference.mean())
     half = 1.959964 * float(difference.std(ddof=1)) / np.sqrt(len(difference))
     return HistoryGain(gain, (gain - half, gain + half), float(np.concatenate(optimal_scores).mean()), episodes)
+
+
+def _played(
+    solution: OptimumSolution, alertness: np.ndarray, t: np.ndarray, elapsed: np.ndarray, work: np.ndarray, left: int
+) -> np.ndarray:
+    """Whether ``solution``'s played policy ([`OptimumSolution.decide`][heartpole.optimum.solution.OptimumSolution.
+    decide]) sleeps, from the no-drink state's numbers."""
+    obs = np.zeros((len(t), 6))
+    obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], obs[:, TIME_ELAPSED], obs[:, WORK_DONE] = alertness, t, elapsed, work
+    return solution.decide(obs, left)

@@ -4,14 +4,14 @@
 [`People`][heartpole.people.People] once, through [`optimum`][heartpole.optimum.optimum] and its cache
 (memory and disk), several at a time in worker processes. The person's optimal expected return is the
 quantity [`EvaluationResult.with_regret`][heartpole.results.EvaluationResult.with_regret] compares a
-policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grid's error
-and what the history it does not see was measured to be worth).
+policy's expected-risk return with: ``OptimumSolution.expected_return``, within its ``margin`` (the grids' errors
+and what any policy may add to the played one).
 
 [`oracle_regret`][heartpole.optimum.people.oracle_regret] is then the mean over episodes of (the episode's
 person's optimal expected return - the policy's expected-risk return in that episode), with a 95% Student-t
-interval over episodes widened by the optimum's margin. The stacked thresholds of
-[`PeopleOptimum`][heartpole.optimum.people.PeopleOptimum] act as the ``oracle`` policy: each env sleeps as
-its own person's optimal policy would.
+interval over episodes widened by the optimum's margin.
+[`PeopleOptimum.decide`][heartpole.optimum.people.PeopleOptimum.decide] acts as the ``oracle`` policy: each env
+sleeps as its own person's optimal policy would.
 """
 
 from __future__ import annotations
@@ -165,6 +165,18 @@ class PeopleOptimum:
         row = np.clip(np.asarray(decisions_left, dtype=np.int64), 0, table.shape[1] - 1)
         threshold = table[who, np.broadcast_to(row, t.shape), np.minimum(t, table.shape[2] - 1)]
         return (t >= self.max_awake[who]) | (np.asarray(alertness, dtype=np.float64) < threshold)
+
+    def decide(self, person: np.ndarray, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
+        """Whether each env's person's optimal policy sleeps: [`OptimumSolution.decide`][heartpole.optimum.solution.
+        OptimumSolution.decide] of env ``i``'s person, which reads the whole observation (``obs`` ``(n, obs_dim)``,
+        ``person`` and ``decisions_left`` ``(n,)``)."""
+        who = np.asarray(person, dtype=np.int64)
+        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), who.shape)
+        sleeps = np.zeros(who.shape, dtype=bool)
+        for index in np.unique(who):
+            mine = who == index
+            sleeps[mine] = self.solutions[index].decide(obs[mine], left[mine])
+        return sleeps
 
     def regret(self, person: np.ndarray, expected_returns: np.ndarray) -> OracleRegret:
         """[`oracle_regret`][heartpole.optimum.people.oracle_regret] of episodes of these people."""

@@ -16,14 +16,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heartpole import files
+from heartpole.model import ALERTNESS, TIME_SINCE_SLEPT
 from heartpole.parameters import Params, check_integer
 from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
 from .drinks import check_covered, drink_floor
 from .lifetime import check_drinks
+from .played import history_arrays, history_from, history_meta, solve_played
 from .sleep import solve_params
-from .whole import history_worth
+from .whole import HistoryOptimum, history_worth
 
 if TYPE_CHECKING:
     from heartpole.dynamics import Dynamics
@@ -31,31 +33,40 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class OptimumSolution:
-    """The optimal sleep rule of a HeartPole variant and its expected return.
+    """The optimal policy of a HeartPole variant and its expected return.
+
+    The policy played ([`decide`][heartpole.optimum.solution.OptimumSolution.decide]) is the history-aware optimum
+    (`history`: it reads the alertness, the half-hours awake, the time elapsed and the work done) up to
+    [`HISTORY_HORIZON`][heartpole.optimum.whole.HISTORY_HORIZON] decisions, and the sleep-timing policy
+    (`thresholds`: alertness, half-hours awake, decisions left) beyond, or where the history gains nothing.
 
     Attributes:
         env_id, env_kwargs: the env solved.
         params: its [`Params`][heartpole.parameters.Params].
         grid: midpoint-grid points of the waking alertness.
         rate: Dinkelbach's optimal ``E[work] / E[time]`` on the grid.
-        expected_score: the exact ``E[work / time]`` of the grid policy.
+        expected_score: the played policy's ``E[work / time]``: the sleep-timing policy's, exact on the grid,
+            plus what the history-aware policy adds to it (`history`'s ``lower - markov``, on its own grid).
         expected_heart_attacks: ``max_steps * heart_attack_risk(0)``, the floor no policy beats.
         expected_return: ``expected_score - heart_attack_penalty * expected_heart_attacks``.
         error_bound: ``|expected_return(grid) - expected_return(grid // 2)|``, the grid's error bound (the
-            midpoint rule converges as ``1/grid**2``, so the fine grid's error is about a third of it).
+            midpoint rule converges as ``1/grid**2``, so the fine grid's error is about a third of it), plus
+            the same for the history's gain (its grid against half of it).
         expected_sleeps: mean sleeps per episode of the optimal policy.
         drink_floor: expected return each drink costs at least
             (`drink_floor`).
         coffee_best_gain: the most a coffee gains over the no-drink optimum in any state checked, in units of
             work (`coffee_check`; negative: coffee never pays).
-        history_worth: what a policy that also sees the work done and the sleeps so far can add to
-            `expected_return`, at most: solved by [`history_worth`][heartpole.optimum.whole.history_worth].
+        history_worth: what any policy can add to `expected_return`, at most: the history program's gap
+            ``upper - lower`` where `history` is played; beyond its horizon, what seeing the work done and the
+            sleeps so far adds to the sleep-timing policy ([`history_worth`][heartpole.optimum.whole.history_worth]).
         thresholds: ``(rows, max_awake)`` alertness thresholds: with ``n`` decisions left and
             ``t = time_since_slept``, sleep when ``alertness < thresholds[n, t]`` (``t >= max_awake``: sleep).
             Far from the end the policy settles into a stationary one; the rows stop there and
             ``n >= rows`` uses the last row ([`thresholds_at`][heartpole.optimum.solution.OptimumSolution.thresholds_at]
             and [`sleeps`][heartpole.optimum.solution.OptimumSolution.sleeps] do). About 1,000 rows on v0 whatever the
             horizon (``max_steps + 1`` where the policy never settles).
+        history: the history-aware policy played, ``None`` where the sleep-timing policy is.
     """
 
     env_id: str
@@ -72,13 +83,26 @@ class OptimumSolution:
     coffee_best_gain: float
     history_worth: float
     thresholds: np.ndarray = field(repr=False, compare=False)
+    history: HistoryOptimum | None = field(default=None, repr=False, compare=False)
 
     @property
     def margin(self) -> float:
-        """How far `expected_return` may be from the optimum over all policies: the grid's `error_bound` plus
-        `history_worth`, what seeing the work done and the sleeps so far can add (the solved policy is the best of
-        those that do not see them). Regret intervals are widened by it."""
+        """How far `expected_return` may be from the optimum over all policies (and from the played policy's value):
+        the grids' `error_bound` plus `history_worth`, the history program's gap (beyond its horizon, what seeing the
+        work done and the sleeps so far can add). Regret intervals are widened by it."""
         return self.error_bound + self.history_worth
+
+    def decide(self, obs: np.ndarray, decisions_left: int | np.ndarray) -> np.ndarray:
+        """Whether the played policy sleeps, for no-drink observations ``(envs, obs_dim)`` and the decisions left
+        (1..max_steps): `history`'s decision where the observation lies in its solved region
+        ([`HistoryOptimum.inside`][heartpole.optimum.whole.HistoryOptimum.inside]), else
+        [`sleeps`][heartpole.optimum.solution.OptimumSolution.sleeps]' (another person's episodes leave the region)."""
+        obs = np.asarray(obs)
+        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
+        timing = self.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
+        if self.history is None:
+            return timing
+        return np.where(self.history.inside(obs, left), self.history.sleeps(obs, left), timing)
 
     @property
     def max_awake(self) -> int:
@@ -127,6 +151,7 @@ class OptimumSolution:
             "drink_floor": self.drink_floor,
             "coffee_best_gain": self.coffee_best_gain,
             "history_worth": self.history_worth,
+            "history": None if self.history is None else history_meta(self.history),
             "max_awake": self.max_awake,
             "solver_version": SOLVER_VERSION,
         }
@@ -136,7 +161,9 @@ class OptimumSolution:
         directory = Path(directory)
         with files.atomic_files(directory / "optimum.npz", directory / "optimum.json") as (npz, summary):
             with npz.open("wb") as handle:
-                np.savez_compressed(handle, thresholds=self.thresholds)
+                arrays = {"thresholds": self.thresholds}
+                arrays.update({} if self.history is None else history_arrays(self.history))
+                np.savez_compressed(handle, **arrays)  # type: ignore[arg-type]
             summary.write_text(files.json_text(self.summary()))
         return directory
 
@@ -155,11 +182,12 @@ class OptimumSolution:
                 raise FileNotFoundError(f"{directory / name} not found; save a solution with OptimumSolution.save")
         try:
             meta = json.loads((directory / "optimum.json").read_text())
-            with np.load(directory / "optimum.npz") as arrays:
-                thresholds = np.asarray(arrays["thresholds"], dtype=np.float64)
             if meta.get("solver_version") != SOLVER_VERSION:
                 raise ValueError(f"solver version {meta.get('solver_version')}, expected {SOLVER_VERSION}")
             params = Params(**{**meta["params"], "wake_alertness": tuple(meta["params"]["wake_alertness"])})
+            with np.load(directory / "optimum.npz") as arrays:
+                thresholds = np.asarray(arrays["thresholds"], dtype=np.float64)
+                history = None if meta["history"] is None else history_from(params, meta["history"], arrays)
             fields = ("rate", "expected_score", "expected_heart_attacks", "expected_return", "error_bound")
             return cls(
                 env_id=meta["env_id"],
@@ -171,6 +199,7 @@ class OptimumSolution:
                 coffee_best_gain=float(meta["coffee_best_gain"]),
                 history_worth=float(meta["history_worth"]),
                 thresholds=thresholds,
+                history=history,
                 **{key: float(meta[key]) for key in fields},
             )
         except Exception as error:  # noqa: BLE001 - whatever a damaged file raises (BadZipFile, EOFError, ...)
@@ -208,22 +237,39 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
     coffee = check_drinks(params, fine.rate)
     coarse = solve_params(params, grid // 2)
     attacks = least_heart_attacks(params)
+    score, error, worth, history = _with_history(
+        params, fine.expected_score, abs(fine.expected_score - coarse.expected_score)
+    )
     return OptimumSolution(
         env_id=env_id,
         env_kwargs=env_kwargs,
         params=params,
         grid=grid,
         rate=fine.rate,
-        expected_score=fine.expected_score,
+        expected_score=score,
         expected_heart_attacks=attacks,
-        expected_return=expected_risk(fine.expected_score, attacks, params.heart_attack_penalty),
-        error_bound=abs(fine.expected_score - coarse.expected_score),
+        expected_return=expected_risk(score, attacks, params.heart_attack_penalty),
+        error_bound=error,
         expected_sleeps=fine.expected_sleeps,
         drink_floor=drink_floor(params),
         coffee_best_gain=coffee,
-        history_worth=history_worth(params),
+        history_worth=worth,
         thresholds=fine.thresholds,
+        history=history,
     )
+
+
+def _with_history(params: Params, score: float, error: float) -> tuple[float, float, float, HistoryOptimum | None]:
+    """The played policy's score, error bound and `history_worth`, and its history program: the sleep-timing
+    policy's ``score`` and grid ``error`` plus the history program's gain, its grid error and its gap; beyond the
+    history's horizon (or where the history gains nothing), the sleep-timing policy with its history's worth."""
+    played = solve_played(params)
+    if played is None:
+        return score, error, history_worth(params), None
+    solved, gain_error = played
+    if solved.gain <= 0:
+        return score, error + gain_error, max(solved.upper - solved.markov, 0.0), None
+    return score + solved.gain, error + gain_error, solved.gap, solved
 
 
 def optimum(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None = None) -> OptimumSolution:

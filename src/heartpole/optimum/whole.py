@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from heartpole.kernel import CACHE
-from heartpole.model import productivity
+from heartpole.model import ballmer, productivity
 from heartpole.parameters import Params
 
 from .common import max_awake
@@ -92,16 +92,34 @@ class HistoryOptimum:
         params = self.params
         awake, drained = self._day
         t = np.minimum(obs[:, 3].round().astype(np.int64), awake - 1)
-        if params.sleep_half_hours:
-            sleeps = np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
-        else:  # the time does not tell the sleeps, and they do not matter: every count has the centre's values
-            sleeps = np.full(len(obs), -1, dtype=np.int64)
+        sleeps = self._sleeps_so_far(obs, n)
         w = obs[:, 0] + drained[t]
-        # the work after each further half-hour of the day, for every env
-        columns = np.minimum(t[:, None] + np.arange(awake)[None, :], awake - 1)
-        worked = productivity(w[:, None] - drained[columns], 0.0)
-        later = obs[:, 5, None] + np.concatenate([np.zeros((len(w), 1)), np.cumsum(worked, axis=1)], axis=1)
-        return _greedy(later, t, n, sleeps, params.max_steps, params.sleep_half_hours, awake, *self._tables())
+        day = (w, obs[:, 5], drained, float(ballmer(0.0)), awake)
+        return _greedy(*day, t, n, sleeps, params.max_steps, params.sleep_half_hours, *self._tables())
+
+    def inside(self, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
+        """Whether each observation lies in the solved region: at the day start a sleep now would begin, its sleeps so
+        far within the band about their typical count and its work within the work grid. Outside (another person's
+        episode, say) the lines are extrapolated far from where they were solved, and `sleeps` means little."""
+        obs = np.asarray(obs, dtype=np.float64)
+        n = np.asarray(decisions_left, dtype=np.int64)
+        sleeps = self._sleeps_so_far(obs, n)
+        if not self.params.sleep_half_hours:
+            return np.ones(len(obs), dtype=bool)
+        after = np.clip(n - 1, 0, len(self.centre) - 1)
+        b = sleeps + 1 - self.centre[after] + self.band
+        row = np.clip(b, 0, 2 * self.band)
+        low = self.work_centre[after, row] + self.work_scale[after, row] * self.offsets[0]
+        high = self.work_centre[after, row] + self.work_scale[after, row] * self.offsets[-1]
+        return (b >= 0) & (b <= 2 * self.band) & (obs[:, 5] >= low) & (obs[:, 5] <= high)
+
+    def _sleeps_so_far(self, obs: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The sleeps so far that the time elapsed and the decisions left tell; -1 where sleeps take no time (the
+        time does not tell them, and they do not matter: every count has the centre's values)."""
+        params = self.params
+        if not params.sleep_half_hours:
+            return np.full(len(obs), -1, dtype=np.int64)
+        return np.round((obs[:, 4] - (params.max_steps - n)) / params.sleep_half_hours).astype(np.int64)
 
     @functools.cached_property
     def _day(self) -> tuple[int, np.ndarray]:
@@ -122,8 +140,10 @@ class HistoryOptimum:
 
 
 HISTORY_HORIZON = 3000
-"""The longest horizon [`history_worth`][heartpole.optimum.whole.history_worth] solves; longer ones take its worth
-there (the history's worth falls with the horizon: 4.3e-5 at 300 decisions, 1.2e-5 at 1,000, 0.3e-5 at 3,000 on v0)."""
+"""The longest horizon whose history-aware optimum a solution plays, and that
+[`history_worth`][heartpole.optimum.whole.history_worth] solves; longer ones play the sleep-timing policy and take the
+history's worth at this horizon (it falls with the horizon: 4.3e-5 at 300 decisions, 1.2e-5 at 1,000, 0.3e-5 at 3,000
+on v0). A longer program would take time and memory growing with the horizon (about 3 x 40 MB of tables here)."""
 
 
 def history_worth(params: Params) -> float:
@@ -390,14 +410,23 @@ def _program(steps: int, rest: int, by_length: Any, centre: Any, band: int, geom
 
 
 @njit(cache=CACHE)
+def _sober_work(alertness: float, sober: float) -> float:
+    """`heartpole.model.productivity` without intoxication (``sober`` is ``ballmer(0)``), term by term as there."""
+    return alertness * (1.0 - 1.0 / (1.0 + np.exp(-(alertness - 0.0 - 3.0)))) * sober
+
+
+@njit(cache=CACHE)
 def _greedy(
-    later: Any,
+    w: Any,
+    work: Any,
+    drained: Any,
+    sober: float,
+    awake: int,
     t: Any,
     n: Any,
     sleeps: Any,
     steps: Any,
     rest: Any,
-    awake: Any,
     centre: Any,
     band: Any,
     work_centre: Any,
@@ -407,28 +436,52 @@ def _greedy(
     slopes: Any,
 ) -> Any:
     """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
-    end), by the upper envelope of the lower lines; ``later[e, j]`` is env ``e``'s work after ``j`` more half-hours
-    of its day."""
+    end), by the upper envelope of the lower lines. Env ``e`` woke at alertness ``w[e]`` (``drained`` since), has
+    ``work[e]`` done; its work after ``j`` more half-hours adds the productivity of each."""
     decide = np.zeros(len(t), dtype=np.bool_)
+    tables = (centre, band, work_centre, work_scale, offsets, lines, slopes)
     for e in range(len(t)):
         if t[e] >= awake - 1:
             decide[e] = True
             continue
-        time = steps + rest * sleeps[e]
-        best_later = later[e, n[e]] / time if n[e] + t[e] <= awake - 1 else -np.inf
-        now = -np.inf
-        for j in range(min(n[e] - 1, awake - 1 - t[e]) + 1):
-            after = n[e] - j - 1
-            b = band if sleeps[e] < 0 else sleeps[e] + 1 - centre[after] + band
-            if b < 0 or b > 2 * band:
-                continue
-            value = -np.inf
-            for i in range(len(offsets)):
-                x_i = work_centre[after, b] + work_scale[after, b] * offsets[i]
-                value = max(value, lines[after, b, i] + slopes[after, b, i] * (later[e, j] - x_i))
-            if j == 0:
-                now = value
-            elif value > best_later:
-                best_later = value
+        best_later = -np.inf
+        if n[e] + t[e] <= awake - 1:  # working to the end is a choice
+            total = work[e]
+            for j in range(n[e]):
+                total += _sober_work(w[e] - drained[t[e] + j], sober)
+            best_later = total / (steps + rest * sleeps[e])
+        later = work[e]
+        now = _line_envelope(later, n[e] - 1, sleeps[e], *tables)
         decide[e] = now >= best_later
+        # a later sleep that beats sleeping now settles it (the first one found: most decisions are "work on")
+        for j in range(1, min(n[e] - 1, awake - 1 - t[e]) + 1):
+            if not decide[e]:
+                break
+            later += _sober_work(w[e] - drained[t[e] + j - 1], sober)
+            decide[e] = now >= _line_envelope(later, n[e] - j - 1, sleeps[e], *tables)
     return decide
+
+
+@njit(cache=CACHE)
+def _line_envelope(
+    x: float,
+    after: int,
+    sleeps: int,
+    centre: Any,
+    band: int,
+    work_centre: Any,
+    work_scale: Any,
+    offsets: Any,
+    lines: Any,
+    slopes: Any,
+) -> float:
+    """The best lower line at the day start ``after`` decisions left with ``x`` work done (``-inf`` outside the band
+    of sleeps so far; ``sleeps < 0``: the centre's)."""
+    b = band if sleeps < 0 else sleeps + 1 - centre[after] + band
+    if b < 0 or b > 2 * band:
+        return -np.inf
+    value = -np.inf
+    for i in range(len(offsets)):
+        x_i = work_centre[after, b] + work_scale[after, b] * offsets[i]
+        value = max(value, lines[after, b, i] + slopes[after, b, i] * (x - x_i))
+    return value

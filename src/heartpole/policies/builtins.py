@@ -186,7 +186,10 @@ class ExpertPolicy:
 
 class OptimalPolicy:
     """``optimal``: the policy of [`heartpole.optimum`][heartpole.optimum]'s dynamic program. Never drink; sleep when
-    alertness falls below a threshold that depends on the half-hours awake and the decisions left.
+    sleeping now is worth at least as much as any later sleep of the day, by the history-aware optimum's values,
+    which read the alertness, the half-hours awake, the work done, the time elapsed and the decisions left
+    ([`OptimumSolution.decide`][heartpole.optimum.solution.OptimumSolution.decide]; beyond 3,000 decisions the
+    sleep-timing policy: sleep when alertness falls below a threshold of the half-hours awake and decisions left).
 
     Far from the end it sleeps near the alertness where ``expert`` does; in the last days it re-times the
     days so that the last one ends with the episode, and over the last few decisions it stays awake. It
@@ -221,16 +224,14 @@ class OptimalPolicy:
                 "the optimal policy needs the number of decisions left: call policy(obs, decisions_left) "
                 "(heartpole.policies.act_batch does it for loops that count steps)"
             )
-        left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
-        sleeps = self.solution.sleeps(obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
-        return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
+        return np.where(self.solution.decide(obs, decisions_left), self.sleep, self.nothing).astype(np.int64)
 
 
 class HistoryOptimalPolicy:
     """The optimum over every policy: like ``optimal``, but it also reads the work done and the time elapsed
     ([`heartpole.optimum.whole`][heartpole.optimum.whole]'s program over day starts). Its expected score is the
-    program's lower value; ``heartpole optimum --history --check N`` runs it through the evaluator. Not a built-in
-    name (``optimal`` stays the sleep-timing policy: see docs/optimum.md).
+    program's lower value; ``heartpole optimum --history --check N`` runs it through the evaluator. ``optimal`` plays
+    the same program solved on fixed grids; this one plays ``solved`` (any grids).
 
     Args:
         dynamics: the env's dynamics (default: v0's); must be v0's actions and variables.

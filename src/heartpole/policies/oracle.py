@@ -1,8 +1,9 @@
 """``oracle``: the policy that knows each episode's person and acts optimally for them.
 
 It is [`OptimalPolicy`][heartpole.policies.OptimalPolicy] with one optimum per person of a finite cohort
-([`PeopleOptimum`][heartpole.optimum.PeopleOptimum]): never drink; sleep when alertness falls below the
-threshold of that person's own optimum. It needs the decisions left and the person (``needs_person``: loops
+([`PeopleOptimum`][heartpole.optimum.PeopleOptimum]): never drink; sleep when that person's own optimum does
+([`PeopleOptimum.decide`][heartpole.optimum.people.PeopleOptimum.decide]).
+It needs the decisions left and the person (``needs_person``: loops
 call it as ``policy(obs, decisions_left, person=info["person"])`` through
 [`act_batch`][heartpole.policies.act_batch]), so its oracle regret is about 0 by construction: it is the
 yardstick oracle regret measures against, not an agent (a real agent does not see who it treats).
@@ -16,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from heartpole.dynamics import Dynamics
-from heartpole.model import ALERTNESS, TIME_SINCE_SLEPT
 from heartpole.policies.common import Actions, DecisionsLeft, Observations, PersonIndex, observation_batch
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ class OraclePolicy:
                 f"indices {who.min()}..{who.max()} (-1 is a person drawn from a distribution: {NEEDS_COHORT})"
             )
         left = np.broadcast_to(np.asarray(decisions_left, dtype=np.int64), (len(obs),))
-        sleeps = self.optimum.sleeps(who, obs[:, ALERTNESS], obs[:, TIME_SINCE_SLEPT], left)
+        sleeps = self.optimum.decide(who, obs, left)
         return np.where(sleeps, self.sleep, self.nothing).astype(np.int64)
 
 
