@@ -203,7 +203,8 @@ def test_custom_callable_and_env_kwargs() -> None:
 
 def test_baselines_rank_by_expected_return() -> None:
     results = baselines(episodes=100, seed=0, env_kwargs={"max_steps": 300})
-    assert [r.policy for r in results][0] == "expert" and results[-1].policy == "coffee"
+    # 300 decisions are solved (no drink pays over its lifetime of blood pressure): optimal first, then expert
+    assert [r.policy for r in results][:2] == ["optimal", "expert"] and results[-1].policy == "coffee"
     assert [r.expected_return for r in results] == sorted((r.expected_return for r in results), reverse=True)
     assert rank(reversed(results)) == results
 
