@@ -57,7 +57,8 @@ not a certified optimum.
 Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
 program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
 never pay), `.drinking` (proclivity 0), `.history` (what the work and time so far are worth, measured),
-`.whole` (the optimum over every policy, history included, with its bounds), `.common` (what they share).
+`.whole` (the optimum over every policy, history included, with its bounds), `.tradeoff` (the productivity-risk
+frontier: the optimum's score against its heart attacks over the penalties), `.common` (what they share).
 """
 
 from __future__ import annotations
@@ -75,6 +76,7 @@ from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_d
 from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regret, solve_people, split_people
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
+from .tradeoff import Frontier, FrontierPoint, frontier, no_drink_threshold
 from .whole import HistoryOptimum, solve_history
 
 __all__ = [
@@ -86,6 +88,8 @@ __all__ = [
     "SOLVER_VERSION",
     "DrinkingGrid",
     "DrinkingSolution",
+    "Frontier",
+    "FrontierPoint",
     "GridSolution",
     "HistoryOptimum",
     "NotCoveredError",
@@ -100,6 +104,8 @@ __all__ = [
     "coffee_check",
     "drink_floor",
     "drinking_rule_value",
+    "frontier",
+    "no_drink_threshold",
     "optimum",
     "optimum_for",
     "oracle_regret",
