@@ -59,7 +59,9 @@ class MOHeartPole(HeartPole):
         """The number of objectives."""
         self._score = np.float32(0.0)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         """HeartPole's ``reset``; the score the first step's change is measured from."""
         observation, info = super().reset(seed=seed, options=options)
         state = self.state

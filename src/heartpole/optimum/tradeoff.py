@@ -23,6 +23,7 @@ Two solvers give the points:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -158,6 +159,7 @@ class Frontier:
         }
 
 
+@functools.lru_cache(maxsize=32)
 def no_drink_threshold(params: Params, tolerance: float = THRESHOLD_TOLERANCE) -> float:
     """The least ``heart_attack_penalty`` (to ``tolerance``, relative) from which the no-drink optimum's own check
     proves that drinks never pay with ``params``' other numbers.
@@ -166,7 +168,8 @@ def no_drink_threshold(params: Params, tolerance: float = THRESHOLD_TOLERANCE) -
     a drink can buy, which does not depend on it: each passes from a penalty on. Bisection on
     [`check_beer`][heartpole.optimum.drinks.check_beer] (a bound: instant) finds its threshold; the coffee check
     ([`check_coffee`][heartpole.optimum.drinks.check_coffee], a pass over the states: seconds) runs there, and only
-    if it refuses is the bisection carried on with it. The returned penalty passes both.
+    if it refuses is the bisection carried on with it. The returned penalty passes both. Kept in memory per
+    ``params``.
 
     Raises:
         NotCoveredError: no penalty up to `LARGEST_PENALTY` passes (``heart_attack_proclivity=0``: drinks cost
@@ -252,10 +255,11 @@ def frontier(
         raise ValueError("env_kwargs must not set heart_attack_penalty: the frontier varies it (give penalties)")
     if kwargs.get("people") is not None:
         raise NotCoveredError(f"people={kwargs['people']!r}: the frontier is one person's; solve each person alone")
+    given = None if penalties is None else _checked(penalties)  # before the threshold's solve (seconds)
     dynamics = env_dynamics(env_id, kwargs)
     check_covered(env_id, dynamics)
     threshold = no_drink_threshold(dynamics.params)
-    asked = default_penalties(threshold, points) if penalties is None else _checked(penalties)
+    asked = default_penalties(threshold, points) if given is None else given
     solved: list[FrontierPoint] = []
     missing: list[tuple[float, str]] = []
     for penalty in asked:
