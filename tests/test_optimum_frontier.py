@@ -89,9 +89,12 @@ class _Drinking:
     expected_return: float
     expected_score: float
     expected_attacks: float
+    drinks_per_episode: float
+    coffees_per_episode: float
+    beers_per_episode: float
     lower: float
     upper: float
-    drinks_per_episode: object
+    covers_beer: bool = True
 
 
 def test_points_come_from_the_no_drink_optimum_above_the_threshold_and_the_drinking_solver_below() -> None:
@@ -100,12 +103,15 @@ def test_points_come_from_the_no_drink_optimum_above_the_threshold_and_the_drink
 
     def drinking(env_id: str, env_kwargs: dict[str, object]) -> _Drinking:
         asked.append(dict(env_kwargs))
-        return _Drinking(1.0, 1.5, 5.0, 0.99, 1.01, {"drink_coffee": 200.0, "drink_beer": 80.0})
+        if env_kwargs["heart_attack_penalty"] == 0.2:
+            raise NotCoveredError("not at 0.2")
+        return _Drinking(1.0, 1.5, 5.0, 280.0, 200.0, 80.0, 0.99, 1.01)
 
     ticks: list[int] = []
-    solved = frontier(penalties=[800, 0.1], env_kwargs=kwargs, drinking=drinking, progress=ticks.append)
-    assert [p.penalty for p in solved.points] == [0.1, 800.0] and solved.missing == () and ticks == [1, 1]
-    assert asked == [{"max_steps": 100, "heart_attack_penalty": 0.1}]
+    solved = frontier(penalties=[800, 0.1, 0.2], env_kwargs=kwargs, drinking=drinking, progress=ticks.append)
+    assert [p.penalty for p in solved.points] == [0.1, 800.0] and ticks == [1, 1, 1]
+    assert solved.missing == ((0.2, "not at 0.2 (the drinking solver)"),)
+    assert asked == [{"max_steps": 100, "heart_attack_penalty": p} for p in (0.1, 0.2)]
     low = solved.points[0]
     assert (low.solver, low.coffees, low.beers, low.drinks) == (DRINKING, 200.0, 80.0, 280.0)
     assert (low.expected_score, low.expected_heart_attacks, low.lower, low.upper) == (1.5, 5.0, 0.99, 1.01)
@@ -211,3 +217,9 @@ def test_v0s_threshold_and_its_point() -> None:
     assert solved.threshold == pytest.approx(100 * 12.5771515980937 / 17.94385509464435, rel=THRESHOLD_TOLERANCE)
     (point,) = solved.points
     assert point.expected_return == pytest.approx(-123.30429, abs=1e-5) and math.isclose(point.drinks, 0.0)
+
+
+def test_a_drinking_solution_without_beer_says_so() -> None:
+    point = tradeoff.drinking_point(0.0, _Drinking(1.0, 1.0, 0.0, 500.0, 500.0, 0.0, 0.9, math.nan, covers_beer=False))
+    assert point.solver == tradeoff.DRINKING_NO_BEER and math.isnan(point.upper)
+    assert point.summary()["upper"] is None and (point.coffees, point.beers, point.drinks) == (500.0, 0.0, 500.0)

@@ -41,6 +41,9 @@ NO_DRINK = "no-drink optimum"
 """[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] of the points the no-drink optimum solved."""
 DRINKING = "drinking optimum"
 """[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] of the points the drinking solver solved."""
+DRINKING_NO_BEER = "drinking optimum, no beer"
+"""[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] where the drinking solver's model leaves beer out
+(its upper bound then covers no policy that drinks beer)."""
 THRESHOLD_TOLERANCE = 1e-3
 """Relative width at which [`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold]'s bisection stops."""
 RATE_GRID = 100
@@ -56,19 +59,20 @@ NO_DRINKS = 1e-3
 class DrinkingFigures(Protocol):
     """What a drinking solver returns for one penalty: the optimum's figures, for one env and its keyword arguments.
 
-    ``drinks_per_episode`` is the expected number of drinks per episode, either one number or a mapping from the
-    action names (``drink_coffee``, ``drink_beer``) to theirs; ``lower`` and ``upper`` bound the optimal expected
-    return (the solved policy's value below, a bound on every policy above)."""
+    The expected drinks, coffees and beers per episode of the solved policy; ``lower`` and ``upper`` bound the
+    optimal expected return (the solved policy's value below, a bound on every policy above: ``nan`` where the
+    solver has none); ``covers_beer`` is false where the solver's model leaves beer out (its policy then never
+    drinks beer, and ``upper`` is no bound on policies that do)."""
 
     expected_return: float
     expected_score: float
     expected_attacks: float
+    drinks_per_episode: float
+    coffees_per_episode: float
+    beers_per_episode: float
     lower: float
     upper: float
-
-    @property
-    def drinks_per_episode(self) -> float | Mapping[str, float]:
-        """Expected drinks per episode: a total, or per drink's action name."""
+    covers_beer: bool
 
 
 DrinkingSolver = Callable[[str, Mapping[str, Any]], DrinkingFigures]
@@ -83,13 +87,14 @@ class FrontierPoint:
         penalty: ``heart_attack_penalty``.
         expected_score: the optimal policy's expected final score (``work_done / time_elapsed``).
         expected_heart_attacks: its expected heart attacks per episode.
-        coffees, beers: its expected coffees and beers per episode (``nan`` where the solver gives only the total).
+        coffees, beers: its expected coffees and beers per episode.
         drinks: its expected drinks per episode.
         expected_return: ``expected_score - penalty x expected_heart_attacks``.
         lower, upper: the optimal expected return lies in ``[lower, upper]``: the solved policy's value (less the
             grid's error) below, a bound on every policy above.
-        solver: which solver gave it ([`NO_DRINK`][heartpole.optimum.tradeoff.NO_DRINK] or
-            [`DRINKING`][heartpole.optimum.tradeoff.DRINKING]).
+        solver: which solver gave it ([`NO_DRINK`][heartpole.optimum.tradeoff.NO_DRINK],
+            [`DRINKING`][heartpole.optimum.tradeoff.DRINKING] or
+            [`DRINKING_NO_BEER`][heartpole.optimum.tradeoff.DRINKING_NO_BEER]).
     """
 
     penalty: float
@@ -298,7 +303,10 @@ def _point(
     except NotCoveredError as error:
         if drinking is None:
             return f"{error} (no drinking solver given)"
-        return drinking_point(penalty, drinking(env_id, env_kwargs))
+        try:
+            return drinking_point(penalty, drinking(env_id, env_kwargs))
+        except NotCoveredError as refusal:
+            return f"{refusal} (the drinking solver)"
     return FrontierPoint(
         penalty=penalty,
         expected_score=solution.expected_score,
@@ -315,23 +323,17 @@ def _point(
 
 def drinking_point(penalty: float, solution: DrinkingFigures) -> FrontierPoint:
     """A drinking solver's ``solution`` at ``penalty`` as a frontier point."""
-    drinks = solution.drinks_per_episode
-    if isinstance(drinks, Mapping):
-        coffees, beers = float(drinks.get("drink_coffee", 0.0)), float(drinks.get("drink_beer", 0.0))
-        total = float(sum(drinks.values()))
-    else:
-        coffees, beers, total = math.nan, math.nan, float(drinks)
     return FrontierPoint(
         penalty=penalty,
         expected_score=float(solution.expected_score),
         expected_heart_attacks=float(solution.expected_attacks),
-        coffees=coffees,
-        beers=beers,
-        drinks=total,
+        coffees=float(solution.coffees_per_episode),
+        beers=float(solution.beers_per_episode),
+        drinks=float(solution.drinks_per_episode),
         expected_return=float(solution.expected_return),
         lower=float(solution.lower),
         upper=float(solution.upper),
-        solver=DRINKING,
+        solver=DRINKING if solution.covers_beer else DRINKING_NO_BEER,
     )
 
 
