@@ -180,7 +180,7 @@ def format_frontier(solved: Frontier) -> str:
             _drinks(p.coffees),
             _drinks(p.beers),
             f"{p.expected_return:.5f}",
-            f"[{p.lower:.5f}, {p.upper:.5f}]",
+            f"[{_number(p.lower)}, {_number(p.upper)}]",
             p.solver,
         ]
         for p in solved.points
@@ -197,6 +197,11 @@ def format_frontier(solved: Frontier) -> str:
         listed = ", ".join(f"{p:g}" for p, _ in solved.missing)
         lines.append(f"not solved: penalties {listed}; at {penalty:g}: {reason}")
     return "\n".join(lines)
+
+
+def _number(value: float) -> str:
+    """A return to 5 decimals, or ``none`` where the solver has no bound."""
+    return "none" if math.isnan(value) else f"{value:.5f}"
 
 
 def _drinks(value: float) -> str:
