@@ -223,3 +223,37 @@ def test_a_drinking_solution_without_beer_says_so() -> None:
     point = tradeoff.drinking_point(0.0, _Drinking(1.0, 1.0, 0.0, 500.0, 500.0, 0.0, 0.9, math.nan, covers_beer=False))
     assert point.solver == tradeoff.DRINKING_NO_BEER and math.isnan(point.upper)
     assert point.summary()["upper"] is None and (point.coffees, point.beers, point.drinks) == (500.0, 0.0, 500.0)
+
+
+@pytest.mark.slow
+def test_a_signal_ends_a_long_frontier_solve_at_once_and_writes_nothing(tmp_path: Path) -> None:
+    """As `heartpole optimum`'s own solve (tests/test_optimum_signals.py): a horizon of a hundred billion decisions
+    keeps the threshold's solve in numba's loop for minutes; SIGTERM ends it within a second, no PNG written."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.signal_dispositions import as_in_a_terminal
+
+    source = Path(__file__).resolve().parents[1] / "src"
+    env = {**os.environ, "HEARTPOLE_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(source), os.environ.get("PYTHONPATH", "")])}  # fmt: skip
+    target = tmp_path / "frontier.png"
+    command = [sys.executable, "-m", "heartpole", "optimum", "--frontier", "--param", "max_steps=100000000000",
+               "--plot", str(target)]  # fmt: skip
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                               preexec_fn=as_in_a_terminal)  # fmt: skip
+    time.sleep(4)  # into the threshold's solve (minutes long)
+    assert process.poll() is None
+    sent = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    try:
+        _, err = process.communicate(timeout=30)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + signal.SIGTERM, err
+    assert (
+        time.monotonic() - sent < 1.5 and not target.exists() and list(tmp_path.iterdir()) in ([], [tmp_path / "cache"])
+    )
