@@ -257,3 +257,21 @@ def test_a_signal_ends_a_long_frontier_solve_at_once_and_writes_nothing(tmp_path
     assert (
         time.monotonic() - sent < 1.5 and not target.exists() and list(tmp_path.iterdir()) in ([], [tmp_path / "cache"])
     )
+
+
+@pytest.mark.slow
+def test_a_trained_models_folder_is_drawn(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sb3 = pytest.importorskip("stable_baselines3")
+    pytest.importorskip("matplotlib")
+    import heartpole as hp
+
+    folder = tmp_path / "run"
+    folder.mkdir()
+    sb3.DQN("MlpPolicy", hp.HeartPole(), policy_kwargs={"net_arch": [8]}, seed=0).save(folder / "model.zip")
+    (folder / "heartpole.json").write_text(json.dumps({"algo": "dqn"}))
+    target = tmp_path / "frontier.png"
+    argv = ["optimum", "--frontier", "--param", "max_steps=100", "--penalties", "800", "--plot", str(target)]
+    assert main([*argv, "--model", str(folder), "--check", "10", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["policies"][0]["policy"].endswith("model.zip") and data["policies"][0]["episodes"] == 10
+    assert target.read_bytes()[:4] == b"\x89PNG"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -80,6 +81,8 @@ def run_frontier(args: argparse.Namespace, kwargs: dict[str, Any]) -> int:
     specs = [*args.policy, *args.model]
     try:
         loaded = {spec: _load(spec, args, kwargs) for spec in specs}  # before the long solve: fail early
+        print(f"solving the frontier of {args.env}{' ' + str(kwargs) if kwargs else ''}: first where drinks stop "
+              "paying, then each penalty...", file=sys.stderr, flush=True)  # fmt: skip
         total = len(penalties) if penalties is not None else DEFAULT_POINTS
         with progress(total, "solving the frontier") as bar:
             solved = interruptible(lambda: frontier(args.env, penalties, env_kwargs=kwargs, progress=bar.update))
