@@ -195,6 +195,8 @@ def format_frontier(solved: Frontier) -> str:
         f"drinks provably never pay from penalty {solved.threshold:.4g} on (the no-drink solver's beer and coffee "
         "checks, by bisection); every penalty above has the same optimum"
     )
+    if solved.drinks_stop < solved.threshold:
+        lines.append(f"the solved optima drink nothing from penalty {solved.drinks_stop:g} on (the points above)")
     if solved.missing:
         penalty, reason = solved.missing[-1]
         listed = ", ".join(f"{p:g}" for p, _ in solved.missing)
