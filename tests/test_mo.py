@@ -4,14 +4,17 @@ LinearReward into HeartPole's own reward, and its Pareto front, the frontier's. 
 
 from __future__ import annotations
 
-import warnings
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import heartpole  # noqa: F401 - registers the ids
-from heartpole.optimum import frontier
+from heartpole import mo
+from heartpole.optimum import NotCoveredError, tradeoff
 
 DRINKS = (1, 2)  # coffee and beer: blood pressure, hence heart attacks, with proclivity 1
 
@@ -81,18 +84,55 @@ def test_same_seed_same_episode_as_heartpole() -> None:
         assert np.array_equal(mo_env.step(action)[0], plain.step(action)[0])
 
 
-def test_the_pareto_front_is_the_frontiers_non_dominated_points() -> None:
+@dataclass
+class _Coffee:
+    """A made-up drinking solver's answer: more score and more heart attacks the lower the penalty."""
+
+    penalty: float
+
+    def __getattr__(self, name: str) -> float:
+        more = 1.0 / (1.0 + self.penalty)
+        figures = {"expected_score": 0.36 + 0.5 * more, "expected_attacks": 0.2 + 10.0 * more, "lower": 0.0,
+                   "expected_return": 0.0, "upper": math.nan, "coffees_per_episode": 100 * more,
+                   "beers_per_episode": 0.0, "drinks_per_episode": 100 * more}  # fmt: skip
+        if name == "optimal":
+            return False
+        return figures[name]
+
+
+@pytest.fixture
+def made_up_drinking(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """The drinking solver replaced by `_Coffee` (a real one takes minutes a penalty), the front's cache emptied."""
+    monkeypatch.setattr(tradeoff, "package_drinking", lambda env_id, kwargs: _Coffee(kwargs["heart_attack_penalty"]))
+    mo._front.cache_clear()
+    yield
+    mo._front.cache_clear()
+
+
+def test_the_pareto_front_is_the_frontiers_non_dominated_points(made_up_drinking: None) -> None:
     env = gym.make("mo-heartpole-v0", max_steps=100).unwrapped
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        front = env.pareto_front(gamma=1.0)
-    solved = frontier(env_kwargs={"max_steps": 100})
-    assert [tuple(point) for point in front] == solved.pareto_front() and len(front) >= 1
+    front = env.pareto_front(gamma=1.0)
+    solved = tradeoff.frontier(env_kwargs={"max_steps": 100}, drinking=tradeoff.package_drinking)
+    assert [tuple(point) for point in front] == solved.pareto_front()
+    assert len(front) == len(solved.points) == tradeoff.DEFAULT_POINTS  # each made-up point on the front
     for point in front:
         assert point.shape == (2,) and point[1] < 0
         others = [p for p in front if p is not point]
         assert not any((p >= point).all() and (p > point).any() for p in others)  # none dominated
-    if solved.missing:  # penalties the no-drink solver refuses and no drinking solver covers: said
-        assert any("leaves out penalties" in str(w.message) for w in caught)
+    assert tuple(front[-1]) == (solved.points[-1].expected_score, -solved.points[-1].expected_heart_attacks)
     with pytest.raises(ValueError, match="only gamma=1.0 is accepted"):
         env.pareto_front(gamma=0.99)
+
+
+def test_a_penalty_no_solver_covers_is_left_out_with_a_warning(monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(env_id: str, kwargs: dict[str, object]) -> object:
+        raise NotCoveredError("not here")
+
+    monkeypatch.setattr(tradeoff, "package_drinking", refuse)
+    mo._front.cache_clear()
+    try:
+        with pytest.warns(UserWarning, match="leaves out penalties 0, 1, "):
+            front = gym.make("mo-heartpole-v0", max_steps=100).unwrapped.pareto_front()
+    finally:
+        mo._front.cache_clear()
+    assert len(front) == 1 and front[0][1] == pytest.approx(-0.12363115783173871)  # the no-drink optimum alone

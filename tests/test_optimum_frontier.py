@@ -17,7 +17,7 @@ from heartpole.optimum.tradeoff import (
     NO_DRINK,
     THRESHOLD_TOLERANCE,
     Frontier,
-    FrontierPoint,
+    FrontierRow,
     default_penalties,
 )
 from heartpole.parameters import Params
@@ -89,12 +89,15 @@ class _Drinking:
     expected_return: float
     expected_score: float
     expected_attacks: float
-    drinks_per_episode: float
     coffees_per_episode: float
     beers_per_episode: float
     lower: float
     upper: float
-    covers_beer: bool = True
+    optimal: bool = True
+
+    @property
+    def drinks_per_episode(self) -> float:
+        return self.coffees_per_episode + self.beers_per_episode
 
 
 def test_points_come_from_the_no_drink_optimum_above_the_threshold_and_the_drinking_solver_below() -> None:
@@ -105,7 +108,7 @@ def test_points_come_from_the_no_drink_optimum_above_the_threshold_and_the_drink
         asked.append(dict(env_kwargs))
         if env_kwargs["heart_attack_penalty"] == 0.2:
             raise NotCoveredError("not at 0.2")
-        return _Drinking(1.0, 1.5, 5.0, 280.0, 200.0, 80.0, 0.99, 1.01)
+        return _Drinking(1.0, 1.5, 5.0, 200.0, 80.0, 0.99, 1.01)
 
     ticks: list[int] = []
     solved = frontier(penalties=[800, 0.1, 0.2], env_kwargs=kwargs, drinking=drinking, progress=ticks.append)
@@ -122,16 +125,18 @@ def test_points_come_from_the_no_drink_optimum_above_the_threshold_and_the_drink
     assert high.lower <= exact.expected_return <= high.upper and high.upper - high.lower == pytest.approx(
         exact.error_bound + exact.margin
     )
-    assert solved.drinks_stop == 800.0
+    assert solved.drinks_stop == 800.0 and solved.proven_from == 800.0
     # without a drinking solver the penalty below is listed with the no-drink solver's reason
-    alone = frontier(penalties=[0.1, 800], env_kwargs=kwargs)
+    alone = frontier(penalties=[0.1, 800], env_kwargs=kwargs, drinking=None)
     assert [p.penalty for p in alone.points] == [800.0]
-    assert alone.missing[0][0] == 0.1 and "drinking may pay" in alone.missing[0][1]
+    assert (
+        alone.missing[0][0] == 0.1 and "drinking" in alone.missing[0][1] and "no drinking solver" in alone.missing[0][1]
+    )
 
 
-def _point(penalty: float, score: float, attacks: float, drinks: float = 0.0) -> FrontierPoint:
+def _point(penalty: float, score: float, attacks: float, drinks: float = 0.0) -> FrontierRow:
     value = score - penalty * attacks
-    return FrontierPoint(penalty, score, attacks, drinks, 0.0, drinks, value, value, value, DRINKING)
+    return FrontierRow(penalty, score, attacks, drinks, 0.0, drinks, value, value, value, DRINKING)
 
 
 def test_the_pareto_front_keeps_the_points_no_other_dominates() -> None:
@@ -147,6 +152,7 @@ def test_the_pareto_front_keeps_the_points_no_other_dominates() -> None:
     front = Frontier("HeartPole-v0", {}, points, 70.0, ()).pareto_front()
     assert front == [(1.1, -300.0), (1.0, -40.0), (0.5, -2.0), (0.327, -1.236)]
     assert Frontier("HeartPole-v0", {}, points, 70.0, ()).drinks_stop == 60
+    assert math.isnan(Frontier("HeartPole-v0", {}, points, 70.0, ()).proven_from)  # every point a drinking one
 
 
 def test_bad_arguments_are_refused_in_one_line() -> None:
@@ -161,10 +167,10 @@ def test_bad_arguments_are_refused_in_one_line() -> None:
 
 
 def test_the_command_prints_the_table_and_json(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["optimum", "--frontier", "--param", "max_steps=100", "--penalties", "0,800", "--check", "0"]) == 0
+    assert main(["optimum", "--frontier", "--param", "max_steps=100", "--penalties", "800,900", "--check", "0"]) == 0
     out = capsys.readouterr().out
-    assert "penalty" in out and "no-drink optimum" in out and "drinks provably never pay from penalty 701" in out
-    assert "not solved: penalties 0; at 0: drinking may pay" in out
+    assert "penalty" in out and "no-drink optimum" in out and "drinks never pay from penalty 701 on" in out
+    assert "not solved" not in out and out.count("no-drink optimum") == 2
     assert main(["optimum", "--frontier", "--param", "max_steps=100", "--penalties", "800", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["threshold"] == pytest.approx(701, rel=THRESHOLD_TOLERANCE) and data["missing"] == []
@@ -219,9 +225,9 @@ def test_v0s_threshold_and_its_point() -> None:
     assert point.expected_return == pytest.approx(-123.30429, abs=1e-5) and math.isclose(point.drinks, 0.0)
 
 
-def test_a_drinking_solution_without_beer_says_so() -> None:
-    point = tradeoff.drinking_point(0.0, _Drinking(1.0, 1.0, 0.0, 500.0, 500.0, 0.0, 0.9, math.nan, covers_beer=False))
-    assert point.solver == tradeoff.DRINKING_NO_BEER and math.isnan(point.upper)
+def test_a_drinking_policy_not_proven_optimal_says_so() -> None:
+    point = tradeoff.drinking_point(0.0, _Drinking(1.0, 1.0, 0.0, 500.0, 0.0, 0.9, math.nan, optimal=False))
+    assert point.solver == tradeoff.LOWER_BOUND and math.isnan(point.upper)
     assert point.summary()["upper"] is None and (point.coffees, point.beers, point.drinks) == (500.0, 0.0, 500.0)
 
 

@@ -82,8 +82,9 @@ class MOHeartPole(HeartPole):
         per episode)`` points for this env's parameters, none dominated (MO-Gymnasium's ``pareto_front``).
 
         Solved once per parameters (minutes the first time; the optimum's cache keeps each penalty's solution). Where
-        a penalty's optimum is not solved (drinks may pay and no drinking solver covers it) its point is left out,
-        with a ``UserWarning`` naming the penalties.
+        a penalty is not solved (a solver refuses it) its point is left out, with a ``UserWarning`` naming the
+        penalties. Where drinks may pay the point is the drinking solver's policy, a lower bound on the optimum (see
+        [`heartpole.optimum.tradeoff`][heartpole.optimum.tradeoff]).
 
         Args:
             gamma: the discount; only 1.0 (the frontier is of whole episodes' score and heart attacks).
@@ -111,7 +112,8 @@ class MOHeartPole(HeartPole):
 @functools.lru_cache(maxsize=8)
 def _front(kwargs: tuple[tuple[str, Any], ...]) -> tuple[list[tuple[float, float]], list[float]]:
     """The frontier's Pareto front for HeartPole-v0 with ``kwargs``, and the penalties left out."""
-    from heartpole.optimum import frontier
+    from heartpole.optimum import tradeoff
 
-    solved = frontier("HeartPole-v0", env_kwargs=dict(kwargs))
+    # the drinking solver looked up at each call, not bound at import: a test can stand in for it
+    solved = tradeoff.frontier("HeartPole-v0", env_kwargs=dict(kwargs), drinking=tradeoff.package_drinking)
     return solved.pareto_front(), [penalty for penalty, _ in solved.missing]

@@ -175,6 +175,8 @@ def _write_plot(solved: Frontier, marks: list[FrontierMark], target: Path) -> No
 
 def format_frontier(solved: Frontier) -> str:
     """The frontier as a table: one row per solved penalty, then the threshold and what was not solved."""
+    from heartpole.optimum.tradeoff import LOWER_BOUND
+
     rows = [
         [
             f"{p.penalty:g}",
@@ -192,11 +194,17 @@ def format_frontier(solved: Frontier) -> str:
     extra = f" {solved.env_kwargs}" if solved.env_kwargs else ""
     lines = [f"{solved.env_id}{extra}: the optimum at each heart-attack penalty", format_table(headers, rows)]
     lines.append(
-        f"drinks provably never pay from penalty {solved.threshold:.4g} on (the no-drink solver's beer and coffee "
-        "checks, by bisection); every penalty above has the same optimum"
+        f"drinks never pay from penalty {solved.threshold:.4g} on, by the per-step check (bisection on it); every "
+        "penalty above has the same optimum"
     )
-    if solved.drinks_stop < solved.threshold:
-        lines.append(f"the solved optima drink nothing from penalty {solved.drinks_stop:g} on (the points above)")
+    if solved.proven_from < solved.threshold:
+        lines.append(f"the solver's check proves it from penalty {solved.proven_from:g} on (the points above)")
+    if solved.drinks_stop < solved.proven_from:
+        lines.append(f"the solved policies drink nothing from penalty {solved.drinks_stop:g} on")
+    if any(p.solver == LOWER_BOUND for p in solved.points):
+        lines.append(
+            f"{LOWER_BOUND}: not a proven optimum; its return is a lower bound (the interval's upper end unknown)"
+        )
     if solved.missing:
         penalty, reason = solved.missing[-1]
         listed = ", ".join(f"{p:g}" for p, _ in solved.missing)

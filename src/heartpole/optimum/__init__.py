@@ -63,6 +63,7 @@ frontier: the optimum's score against its heart attacks over the penalties), `.c
 
 from __future__ import annotations
 
+from .coffee import CoffeeSolution, solve_coffee
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError
 from .drinking import (
     DRINKING_ACTIONS,
@@ -73,10 +74,12 @@ from .drinking import (
     solve_drinking,
 )
 from .drinks import COFFEE_CHECK_ALERTNESS, check_beer, check_coffee, check_no_drinks, coffee_check, drink_floor
+from .lifetime import check_drinks, check_drinks_lifetime
 from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regret, solve_people, split_people
+from .point import FrontierPoint, frontier_point
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
-from .tradeoff import Frontier, FrontierPoint, frontier, no_drink_threshold
+from .tradeoff import Frontier, FrontierRow, frontier, no_drink_threshold
 from .whole import HistoryOptimum, solve_history
 
 __all__ = [
@@ -86,10 +89,12 @@ __all__ = [
     "MAX_DINKELBACH_ITERATIONS",
     "NEVER",
     "SOLVER_VERSION",
+    "CoffeeSolution",
     "DrinkingGrid",
+    "FrontierPoint",
     "DrinkingSolution",
     "Frontier",
-    "FrontierPoint",
+    "FrontierRow",
     "GridSolution",
     "HistoryOptimum",
     "NotCoveredError",
@@ -100,17 +105,21 @@ __all__ = [
     "cache_dir",
     "check_beer",
     "check_coffee",
+    "check_drinks",
+    "check_drinks_lifetime",
     "check_no_drinks",
     "coffee_check",
     "drink_floor",
     "drinking_rule_value",
     "frontier",
+    "frontier_point",
     "no_drink_threshold",
     "optimum",
     "optimum_for",
     "oracle_regret",
     "sleep_rule_value",
     "solve",
+    "solve_coffee",
     "solve_drinking",
     "solve_history",
     "solve_params",

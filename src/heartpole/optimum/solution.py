@@ -20,7 +20,8 @@ from heartpole.parameters import Params, check_integer
 from heartpole.rewards import expected_risk, least_heart_attacks
 
 from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
-from .drinks import check_beer, check_coffee, check_covered, drink_floor
+from .drinks import check_covered, drink_floor
+from .lifetime import check_drinks
 from .sleep import solve_params
 from .whole import history_worth
 
@@ -203,9 +204,8 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
 
 
 def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -> OptimumSolution:
-    check_beer(params)
     fine = solve_params(params, grid)
-    coffee = check_coffee(params, fine.rate)
+    coffee = check_drinks(params, fine.rate)
     coarse = solve_params(params, grid // 2)
     attacks = least_heart_attacks(params)
     return OptimumSolution(
@@ -220,7 +220,7 @@ def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -
         error_bound=abs(fine.expected_score - coarse.expected_score),
         expected_sleeps=fine.expected_sleeps,
         drink_floor=drink_floor(params),
-        coffee_best_gain=coffee["coffee_best_gain"],
+        coffee_best_gain=coffee,
         history_worth=history_worth(params),
         thresholds=fine.thresholds,
     )

@@ -9,16 +9,20 @@ are the frontier: every policy lies on or below it (each penalty's optimum maxim
 the line of slope ``penalty`` through it), and each point is the best score reachable at its risk, where the
 frontier is concave.
 
-Two solvers give the points:
+Two solvers give the points, each penalty in turn:
 
-* **The no-drink optimum** ([`optimum`][heartpole.optimum.solution.optimum]) wherever its own check proves that drinks
-  never pay. That check charges each drink its least heart-attack cost, which grows with the penalty, so it passes
-  from a threshold penalty on: [`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold] finds it by
-  bisection on the check itself (``check_beer``, then ``check_coffee``), about 70.1 on v0. Above it every penalty
-  has the same optimal policy: one point.
-* **A drinking solver** below the threshold, passed as ``drinking`` (see
-  [`DrinkingSolver`][heartpole.optimum.tradeoff.DrinkingSolver]). Without one, those penalties are listed in
-  [`Frontier.missing`][heartpole.optimum.tradeoff.Frontier] with the no-drink solver's reason.
+* **The no-drink optimum** ([`optimum`][heartpole.optimum.solution.optimum]) wherever its own check
+  ([`check_drinks`][heartpole.optimum.lifetime.check_drinks]) proves that drinks never pay. Its first, per-step
+  argument charges each drink its own step's heart-attack cost, which grows with the penalty, so it passes from a
+  threshold penalty on: [`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold] finds it by bisection
+  on that check itself (``check_beer``, then ``check_coffee``), about 70.1 on v0, and the default penalties run from
+  0 up to it. Below it the lifetime check (a drink's whole lifetime of blood pressure, minutes a penalty) may still
+  prove it: [`Frontier.proven_from`][heartpole.optimum.tradeoff.Frontier.proven_from] is the least solved penalty
+  from which on every point is proven. Every penalty above has the same optimal policy: one point.
+* **A drinking solver** where the check refuses (``drinking``; default
+  [`frontier_point`][heartpole.optimum.point.frontier_point]'s coffee program, whose policy is a lower bound, not a
+  proven optimum). With ``drinking=None`` those penalties are listed in
+  [`Frontier.missing`][heartpole.optimum.tradeoff.Frontier] with the check's reason.
 """
 
 from __future__ import annotations
@@ -38,12 +42,12 @@ from .drinks import check_beer, check_coffee
 from .sleep import solve_params
 
 NO_DRINK = "no-drink optimum"
-"""[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] of the points the no-drink optimum solved."""
+"""[`FrontierRow.solver`][heartpole.optimum.tradeoff.FrontierRow] of the points the no-drink optimum solved."""
 DRINKING = "drinking optimum"
-"""[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] of the points the drinking solver solved."""
-DRINKING_NO_BEER = "drinking optimum, no beer"
-"""[`FrontierPoint.solver`][heartpole.optimum.tradeoff.FrontierPoint] where the drinking solver's model leaves beer out
-(its upper bound then covers no policy that drinks beer)."""
+"""[`FrontierRow.solver`][heartpole.optimum.tradeoff.FrontierRow] of the points the drinking solver proved optimal."""
+LOWER_BOUND = "best solved policy"
+"""[`FrontierRow.solver`][heartpole.optimum.tradeoff.FrontierRow] where the drinking solver has a policy, not a proven
+optimum: its value is a lower bound on the optimum's (``upper`` unknown, ``nan``)."""
 THRESHOLD_TOLERANCE = 1e-3
 """Relative width at which [`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold]'s bisection stops."""
 RATE_GRID = 100
@@ -57,30 +61,63 @@ NO_DRINKS = 1e-3
 
 
 class DrinkingFigures(Protocol):
-    """What a drinking solver returns for one penalty: the optimum's figures, for one env and its keyword arguments.
+    """What a drinking solver returns for one penalty ([`FrontierPoint`][heartpole.optimum.point.FrontierPoint]).
 
     The expected drinks, coffees and beers per episode of the solved policy; ``lower`` and ``upper`` bound the
     optimal expected return (the solved policy's value below, a bound on every policy above: ``nan`` where the
-    solver has none); ``covers_beer`` is false where the solver's model leaves beer out (its policy then never
-    drinks beer, and ``upper`` is no bound on policies that do)."""
+    solver has none); ``optimal`` is whether the policy is the proven optimum."""
 
-    expected_return: float
-    expected_score: float
-    expected_attacks: float
-    drinks_per_episode: float
-    coffees_per_episode: float
-    beers_per_episode: float
-    lower: float
-    upper: float
-    covers_beer: bool
+    @property
+    def expected_return(self) -> float:
+        """The solved policy's expected return."""
+
+    @property
+    def expected_score(self) -> float:
+        """Its expected final score."""
+
+    @property
+    def expected_attacks(self) -> float:
+        """Its expected heart attacks per episode."""
+
+    @property
+    def coffees_per_episode(self) -> float:
+        """Its expected coffees per episode."""
+
+    @property
+    def beers_per_episode(self) -> float:
+        """Its expected beers per episode."""
+
+    @property
+    def drinks_per_episode(self) -> float:
+        """Coffees and beers per episode."""
+
+    @property
+    def lower(self) -> float:
+        """The optimum's expected return is at least this."""
+
+    @property
+    def upper(self) -> float:
+        """... and at most this (``nan``: unknown)."""
+
+    @property
+    def optimal(self) -> bool:
+        """Whether the policy is the proven optimum."""
 
 
 DrinkingSolver = Callable[[str, Mapping[str, Any]], DrinkingFigures]
 """``solver(env_id, env_kwargs)``: the optimum where drinks may pay (``env_kwargs`` holds the penalty)."""
 
 
+def package_drinking(env_id: str, env_kwargs: Mapping[str, Any]) -> DrinkingFigures:
+    """The package's drinking solver: [`frontier_point`][heartpole.optimum.point.frontier_point] (the coffee
+    program's policy where drinks may pay)."""
+    from .point import frontier_point
+
+    return frontier_point(env_id, **env_kwargs)
+
+
 @dataclass(frozen=True)
-class FrontierPoint:
+class FrontierRow:
     """The optimum at one heart-attack penalty.
 
     Attributes:
@@ -94,7 +131,7 @@ class FrontierPoint:
             grid's error) below, a bound on every policy above.
         solver: which solver gave it ([`NO_DRINK`][heartpole.optimum.tradeoff.NO_DRINK],
             [`DRINKING`][heartpole.optimum.tradeoff.DRINKING] or
-            [`DRINKING_NO_BEER`][heartpole.optimum.tradeoff.DRINKING_NO_BEER]).
+            [`LOWER_BOUND`][heartpole.optimum.tradeoff.LOWER_BOUND]).
     """
 
     penalty: float
@@ -120,21 +157,32 @@ class Frontier:
     Attributes:
         env_id, env_kwargs: the env (``env_kwargs`` without the penalty).
         points: the solved penalties, in increasing order.
-        threshold: the no-drink threshold: from this penalty on the no-drink optimum's check proves that drinks
-            never pay ([`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold]).
+        threshold: from this penalty on the no-drink optimum's per-step check proves that drinks never pay
+            ([`no_drink_threshold`][heartpole.optimum.tradeoff.no_drink_threshold]).
         missing: ``(penalty, reason)`` of the penalties asked for that no solver covers.
     """
 
     env_id: str
     env_kwargs: dict[str, Any]
-    points: tuple[FrontierPoint, ...]
+    points: tuple[FrontierRow, ...]
     threshold: float
     missing: tuple[tuple[float, str], ...]
 
     @property
+    def proven_from(self) -> float:
+        """The least solved penalty from which on every solved point is the no-drink optimum, proven by the solver's
+        check (``nan`` if the highest is not): where drinks stop paying, as far as the points show."""
+        proven = math.nan
+        for point in reversed(self.points):
+            if point.solver != NO_DRINK:
+                break
+            proven = point.penalty
+        return proven
+
+    @property
     def drinks_stop(self) -> float:
-        """The smallest solved penalty from which on every solved point drinks nothing (``nan`` if none does):
-        where drinks stop paying, as far as the points show (at most `threshold`, where the check proves it)."""
+        """The least solved penalty from which on every solved point drinks nothing (``nan`` if the highest drinks):
+        at most `proven_from` (a policy that is not proven optimal may drink nothing too)."""
         stop = math.nan
         for point in reversed(self.points):
             if point.drinks >= NO_DRINKS:
@@ -158,6 +206,7 @@ class Frontier:
             "env_id": self.env_id,
             "env_kwargs": self.env_kwargs,
             "threshold": self.threshold,
+            "proven_from": _json(self.proven_from),
             "drinks_stop": _json(self.drinks_stop),
             "points": [p.summary() for p in self.points],
             "missing": [{"penalty": p, "reason": reason} for p, reason in self.missing],
@@ -232,7 +281,7 @@ def frontier(
     penalties: Sequence[float] | None = None,
     *,
     env_kwargs: Mapping[str, Any] | None = None,
-    drinking: DrinkingSolver | None = None,
+    drinking: DrinkingSolver | None = package_drinking,
     points: int = DEFAULT_POINTS,
     progress: Callable[[int], object] | None = None,
 ) -> Frontier:
@@ -243,7 +292,8 @@ def frontier(
         penalties: the heart-attack penalties (>= 0) to solve; default: `points` from 0 to the no-drink threshold
             ([`default_penalties`][heartpole.optimum.tradeoff.default_penalties]).
         env_kwargs: the env's other keyword arguments (not ``heart_attack_penalty``, which the frontier varies).
-        drinking: the solver for penalties below the threshold; ``None`` lists them in ``missing``.
+        drinking: the solver for the penalties the no-drink optimum refuses (default:
+            [`package_drinking`][heartpole.optimum.tradeoff.package_drinking]); ``None`` lists them in ``missing``.
         points: how many default penalties.
         progress: called with 1 after each penalty is solved (a progress bar's ``update``).
 
@@ -265,11 +315,11 @@ def frontier(
     check_covered(env_id, dynamics)
     threshold = no_drink_threshold(dynamics.params)
     asked = default_penalties(threshold, points) if given is None else given
-    solved: list[FrontierPoint] = []
+    solved: list[FrontierRow] = []
     missing: list[tuple[float, str]] = []
     for penalty in asked:
         point = _point(env_id, {**kwargs, "heart_attack_penalty": penalty}, threshold, drinking)
-        if isinstance(point, FrontierPoint):
+        if isinstance(point, FrontierRow):
             solved.append(point)
         else:
             missing.append((penalty, point))
@@ -292,22 +342,21 @@ def _checked(penalties: Sequence[float]) -> list[float]:
 
 def _point(
     env_id: str, env_kwargs: dict[str, Any], threshold: float, drinking: DrinkingSolver | None
-) -> FrontierPoint | str:
-    """The optimum at one penalty: the no-drink one where its check passes, else the drinking solver's; a reason
-    where neither covers it."""
+) -> FrontierRow | str:
+    """The optimum at one penalty: the no-drink one from the threshold on (its check passes there), the drinking
+    solver's below it (which answers where the no-drink optimum's check passes too), else the no-drink optimum or
+    its refusal's reason."""
     from .solution import optimum
 
     penalty = float(env_kwargs["heart_attack_penalty"])
     try:
+        if drinking is not None and penalty < threshold:
+            return drinking_point(penalty, drinking(env_id, env_kwargs))
         solution = optimum(env_id, env_kwargs)
     except NotCoveredError as error:
-        if drinking is None:
-            return f"{error} (no drinking solver given)"
-        try:
-            return drinking_point(penalty, drinking(env_id, env_kwargs))
-        except NotCoveredError as refusal:
-            return f"{refusal} (the drinking solver)"
-    return FrontierPoint(
+        solver = "no drinking solver given" if drinking is None else "the drinking solver"
+        return f"{error} ({solver})"
+    return FrontierRow(
         penalty=penalty,
         expected_score=solution.expected_score,
         expected_heart_attacks=solution.expected_heart_attacks,
@@ -321,19 +370,25 @@ def _point(
     )
 
 
-def drinking_point(penalty: float, solution: DrinkingFigures) -> FrontierPoint:
-    """A drinking solver's ``solution`` at ``penalty`` as a frontier point."""
-    return FrontierPoint(
+def drinking_point(penalty: float, solution: DrinkingFigures) -> FrontierRow:
+    """A drinking solver's ``solution`` at ``penalty`` as a row: the no-drink optimum's where it is proven optimal and
+    drinks nothing, else the drinking optimum's or (not proven) the best solved policy's."""
+    drinks = float(solution.drinks_per_episode)
+    if solution.optimal:
+        solver = NO_DRINK if drinks == 0 else DRINKING
+    else:
+        solver = LOWER_BOUND
+    return FrontierRow(
         penalty=penalty,
         expected_score=float(solution.expected_score),
         expected_heart_attacks=float(solution.expected_attacks),
         coffees=float(solution.coffees_per_episode),
         beers=float(solution.beers_per_episode),
-        drinks=float(solution.drinks_per_episode),
+        drinks=drinks,
         expected_return=float(solution.expected_return),
         lower=float(solution.lower),
         upper=float(solution.upper),
-        solver=DRINKING if solution.covers_beer else DRINKING_NO_BEER,
+        solver=solver,
     )
 
 
