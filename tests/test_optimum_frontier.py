@@ -281,3 +281,17 @@ def test_a_trained_models_folder_is_drawn(tmp_path: Path, capsys: pytest.Capture
     data = json.loads(capsys.readouterr().out)
     assert data["policies"][0]["policy"].endswith("model.zip") and data["policies"][0]["episodes"] == 10
     assert target.read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.slow
+def test_the_package_drinking_solver_gives_the_free_penalty_its_coffee_policy() -> None:
+    """At penalty 0 drinks are free: frontier_point's coffee program (minutes) buys score with heart attacks."""
+    solved = frontier(penalties=[0, 800], env_kwargs={"max_steps": 100})
+    free, dear = solved.points
+    assert (free.solver, dear.solver) == (tradeoff.LOWER_BOUND, NO_DRINK) and solved.missing == ()
+    assert free.coffees > 10 and free.beers == 0 and math.isnan(free.upper)
+    assert free.expected_score > dear.expected_score + 0.1 and free.expected_heart_attacks > dear.expected_heart_attacks
+    assert solved.pareto_front() == [
+        (free.expected_score, -free.expected_heart_attacks),
+        (dear.expected_score, -dear.expected_heart_attacks),
+    ]
