@@ -14,9 +14,12 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from heartpole.optimum import Frontier
+    from heartpole.optimum import Frontier, FrontierRow
 
 
+LOWER_LABEL = "the best solved policy (not proven optimal: the optimum is at or above it)"
+SAME_PLACE = 1e-3
+"""Points closer than this (relative, on both axes) share one label: the same policy at several penalties."""
 OFF_SCALE = 3.0
 """How far below the frontier (in units of its span in score, at least 0.5) a policy may score and still be drawn."""
 
@@ -42,21 +45,31 @@ def frontier_figure(frontier: Frontier, marks: Sequence[FrontierMark] = ()) -> F
     """The frontier's points (expected heart attacks per episode, expected score) joined by a line and labelled
     by their penalty, the no-drink threshold's point marked, and each of ``marks`` as a point with its 95%
     intervals on both axes. The heart attacks' axis is logarithmic where they span more than a factor of 20."""
+    from heartpole.optimum.tradeoff import LOWER_BOUND
+
     figure = new_figure(8.0, 5.2)
     axes = figure.add_subplot()
     points = sorted(frontier.points, key=lambda p: p.expected_heart_attacks)
     x = [p.expected_heart_attacks for p in points]
     y = [p.expected_score for p in points]
-    axes.plot(x, y, "-o", color=CURVE_COLOR, linewidth=2, markersize=5, label="the optimum at each penalty", zorder=3)
-    for point in points:
-        axes.annotate(
-            f"{point.penalty:g}",
-            (point.expected_heart_attacks, point.expected_score),
-            xytext=(6, 4),
-            textcoords="offset points",
-            fontsize=8,
-            color="#495057",
-        )
+    axes.plot(x, y, "-", color=CURVE_COLOR, linewidth=2, zorder=3)
+    proven = [p for p in points if p.solver != LOWER_BOUND]
+    bounds = [p for p in points if p.solver == LOWER_BOUND]
+    for group, style, label in ((proven, "o", "the optimum at each penalty"), (bounds, "o", LOWER_LABEL)):
+        if group:
+            axes.plot(
+                [p.expected_heart_attacks for p in group],
+                [p.expected_score for p in group],
+                style,
+                color=CURVE_COLOR,
+                markerfacecolor=CURVE_COLOR if group is proven else "white",
+                markersize=6,
+                label=label,
+                zorder=5 if group is proven else 4,  # the proven point in front where both lie at one place
+            )
+    for (attacks, score), penalties in _places(points):
+        text = f"{penalties[0]:g}" if len(penalties) == 1 else f"{penalties[0]:g} to {penalties[-1]:g}"
+        axes.annotate(text, (attacks, score), xytext=(6, 4), textcoords="offset points", fontsize=8, color="#495057")
     shown, off = _on_scale(y, marks)
     for index, mark in enumerate(marks):
         if mark in shown:
@@ -67,14 +80,16 @@ def frontier_figure(frontier: Frontier, marks: Sequence[FrontierMark] = ()) -> F
     every = x + [m.heart_attacks for m in shown]
     if every and min(every) > 0 and max(every) / min(every) > 20:
         axes.set_xscale("log")
-    notes = [f"drinks never pay from penalty {frontier.threshold:.4g} on (the solver's check)"]
+    notes = [f"drinks never pay from penalty {frontier.threshold:.4g} on (the per-step check)"]
+    if frontier.proven_from < frontier.threshold:
+        notes[0] += f", proven from {frontier.proven_from:g} on (the solver's check)"
     if frontier.missing:
         notes.append(f"not solved: penalties {', '.join(f'{p:g}' for p, _ in frontier.missing)}")
     notes += [f"off the scale: {m.label} (score {m.score:.3g}, {m.heart_attacks:.3g} heart attacks)" for m in off]
     axes.set(
         xlabel="expected heart attacks per episode",
         ylabel="expected final score (work / time)",
-        title=f"{frontier.env_id}: the productivity-risk frontier (labels: heart-attack penalty)",
+        title=f"{frontier.env_id}{_kwargs(frontier.env_kwargs)}: the productivity-risk frontier (labels: penalty)",
     )
     axes.text(
         0.01,
@@ -87,6 +102,25 @@ def frontier_figure(frontier: Frontier, marks: Sequence[FrontierMark] = ()) -> F
     axes.grid(alpha=0.3)
     axes.legend(fontsize=8, loc="best")
     return figure
+
+
+def _kwargs(env_kwargs: dict[str, object]) -> str:
+    """`` max_steps=100`` for the title: the env's keyword arguments, if any."""
+    return "".join(f" {name}={value}" for name, value in env_kwargs.items())
+
+
+def _places(points: Sequence[FrontierRow]) -> list[tuple[tuple[float, float], list[float]]]:
+    """The points' places, each with the penalties there (the same policy at several penalties: one label)."""
+    places: list[tuple[tuple[float, float], list[float]]] = []
+    for point in points:
+        here = (point.expected_heart_attacks, point.expected_score)
+        if places and all(
+            math.isclose(a, b, rel_tol=SAME_PLACE, abs_tol=SAME_PLACE) for a, b in zip(places[-1][0], here)
+        ):
+            places[-1][1].append(point.penalty)
+        else:
+            places.append((here, [point.penalty]))
+    return [(place, sorted(penalties)) for place, penalties in places]
 
 
 def _on_scale(scores: list[float], marks: Sequence[FrontierMark]) -> tuple[list[FrontierMark], list[FrontierMark]]:
