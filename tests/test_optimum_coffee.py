@@ -87,3 +87,46 @@ def test_a_tiny_instance_matches_exhaustive_search() -> None:
     exhaustive search's to the interpolation error in hypertension (below 1e-4 of a unit of work here)."""
     searched = _search_value(TINY, SCALE)
     assert _program_value(TINY, RATE, SCALE) == pytest.approx(searched, abs=1e-4)
+
+
+def test_the_frontier_point_where_no_drink_pays_is_the_no_drink_optimum() -> None:
+    """At v0's penalty drinks never pay: the frontier's point is the optimum itself, no drinks, its interval around
+    its value by the grid's error and the history's worth."""
+    from heartpole.optimum import frontier_point, optimum
+
+    v0 = optimum("HeartPole-v0")
+    point = frontier_point("HeartPole-v0")
+    assert point.optimal and point.drinks_per_episode == 0.0
+    assert point.expected_return == v0.expected_return and point.expected_attacks == v0.expected_heart_attacks
+    assert (
+        point.lower <= point.expected_return <= point.upper and point.upper - point.lower <= v0.margin + v0.error_bound
+    )
+    assert point.summary()["drinks_per_episode"] == 0.0
+
+
+def test_the_frontier_point_refuses_params_with_keywords() -> None:
+    from heartpole.optimum import frontier_point
+
+    with pytest.raises(TypeError, match="takes no keyword arguments"):
+        frontier_point(Params(), max_steps=10)
+    with pytest.raises(TypeError, match="env id or a heartpole.parameters.Params"):
+        frontier_point(3)  # type: ignore[arg-type]
+
+
+@pytest.mark.slow  # the lifetime check at 1,000 decisions (about a minute) and 2,000 episodes through the evaluator
+def test_at_penalty_30_no_drink_pays_and_the_evaluator_confirms(capsys) -> None:
+    """The own-step floor cannot rule drinks out at penalty 30 (it did refuse), the lifetime check does: the optimum
+    is the no-drink one, and the evaluator's 95% interval for `optimal` holds its value."""
+    import json
+
+    from heartpole.cli import main
+    from heartpole.optimum import NotCoveredError, check_beer
+
+    params = Params(heart_attack_penalty=30.0)
+    with pytest.raises(NotCoveredError):
+        check_beer(params)
+    assert main(["optimum", "--json", "--param", "heart_attack_penalty=30"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["coffee_best_gain"] < 0
+    low, high = data["check_optimal"]["expected_ci95"]
+    assert low - data["error_bound"] <= data["expected_return"] <= high + data["error_bound"]

@@ -38,8 +38,10 @@ through the forward pass (see docs/optimum.md for measurements).
 
 What it does not cover, refused with a clear error: action sets other than v0's four (HeartPole-v1's
 naps, tea, exercise and cannabis), extra state variables, ``heart_attack_proclivity = 0`` or
-``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where
-[`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] cannot rule drinks out. The solved policy sees ``(n,
+``heart_attack_penalty = 0`` (drinking then pays: see docs/optimum.md) and parameters where neither
+[`check_no_drinks`][heartpole.optimum.drinks.check_no_drinks] nor the check over a drink's whole lifetime of blood
+pressure ([`check_drinks`][heartpole.optimum.lifetime.check_drinks], which covers v0 at penalties 10 to 100 and
+proclivity 0.2) rules drinks out. The solved policy sees ``(n,
 alertness, t)``, not the work and sleeps so far: it is the best of the policies that see those. The optimum over
 every policy, which also sees the work and sleeps so far, is solved by
 [`solve_history`][heartpole.optimum.whole.solve_history] (a program over day starts, its policy's exact value below
@@ -57,8 +59,11 @@ not a certified optimum.
 Layout: `.solution` (the solution, the entry points, the cache), `.sleep` (the sleep-timing
 program), `.days` (the days of a policy and the exact expected score), `.drinks` (why drinks
 never pay), `.drinking` (proclivity 0), `.history` (what the work and time so far are worth, measured),
-`.whole` (the optimum over every policy, history included, with its bounds), `.tradeoff` (the productivity-risk
-frontier: the optimum's score against its heart attacks over the penalties), `.common` (what they share).
+`.whole` (the optimum over every policy, history included, with its bounds), `.pressure` (the program over
+alertness, blood pressure and time awake, with coffee), `.lifetime` (why drinks never pay, over their whole
+lifetime), `.coffee` (the coffee program's policy where drinks may pay), `.point` (a point of the productivity-risk
+frontier), `.tradeoff` (the frontier itself: the optimum's score against its heart attacks over the penalties),
+`.common` (what they share).
 """
 
 from __future__ import annotations

@@ -202,7 +202,10 @@ def play(grid: PressureGrid, actions: np.ndarray, episodes: int, seed: int = 0) 
 
 
 @njit(cache=CACHE)
-def _nearest(h, x):
+def _nearest(
+    h: Any,
+    x: Any,
+) -> Any:
     lo, hi = 0, len(h) - 1
     if x >= h[hi]:
         return hi
@@ -216,8 +219,22 @@ def _nearest(h, x):
 
 
 @njit(cache=CACHE)
-def _episodes(episodes, seed, actions, drained, start, h, step, steps, decay, sleep_half_hours, proclivity, wake_low,
-              wake_width, ballmer0):  # fmt: skip
+def _episodes(
+    episodes: Any,
+    seed: Any,
+    actions: Any,
+    drained: Any,
+    start: Any,
+    h: Any,
+    step: Any,
+    steps: Any,
+    decay: Any,
+    sleep_half_hours: Any,
+    proclivity: Any,
+    wake_low: Any,
+    wake_width: Any,
+    ballmer0: Any,
+) -> Any:
     """Each episode's (score, summed risk, coffees, sleeps) under the policy, the env's step in float64."""
     np.random.seed(seed)
     rows, awake, hp, width = actions.shape

@@ -71,13 +71,15 @@ def check_drinks_lifetime(params: Params, rate: float, alertness_step: float = 0
     """
     grid = PressureGrid(params, alertness_step)
     bonus = beer_bonus(grid)
-    sweep = backward(grid, rate, float(params.max_steps), 1, bonus=bonus)
+    sweep = backward(grid, rate, float(params.max_steps), 1, bonus=bonus, stop_at_gain=True)
     coffee, beer = sweep.gains
     if coffee > 0 or beer > 0:
         raise NotCoveredError(
-            f"drinking may pay with these parameters: counting a drink's whole lifetime of blood pressure, a coffee "
-            f"gains up to {coffee:.4g} and a beer up to {beer:.4g} units of work over the no-drink optimum in some "
-            "state; the optimum covers variants where drinking never pays"
+            f"drinking may pay at heart_attack_penalty={params.heart_attack_penalty:g}, heart_attack_proclivity="
+            f"{params.heart_attack_proclivity:g}, max_steps={params.max_steps}: counting a drink's whole lifetime of "
+            "blood pressure, a coffee "
+            f"gains {coffee:.4g} and a beer {beer:.4g} units of work over the no-drink optimum in some state (the "
+            "check stops at the first gain); the optimum covers variants where drinking never pays"
         )
     return {"coffee_lifetime_gain": coffee, "beer_lifetime_gain": beer, "beer_bonus": bonus}
 
@@ -95,7 +97,7 @@ def check_drinks(params: Params, rate: float) -> float:
     """
     if params.heart_attack_penalty * params.heart_attack_proclivity == 0:
         raise NotCoveredError(
-            "drinking pays with these parameters: heart attacks cost nothing (heart_attack_penalty * "
+            "drinking may pay with these parameters: heart attacks cost nothing (heart_attack_penalty * "
             "heart_attack_proclivity == 0), so coffee and beer are free; the optimum covers variants where drinking "
             "never pays (heartpole.optimum.solve_drinking has a grid policy for proclivity 0)"
         )

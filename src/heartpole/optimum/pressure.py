@@ -3,10 +3,11 @@
 With a low ``heart_attack_penalty`` (or proclivity) a coffee's alertness may be worth its blood pressure, so
 hypertension becomes part of the state. Intoxication is left out: the program's policies never drink beer (see
 docs/optimum.md for what that assumes). The objective is linearised as Dinkelbach's is: for a rate ``lam`` and a
-time scale ``c`` the program maximises ``E[work - lam * time - c * penalty * risk]``, ``risk`` the sum of the steps'
-heart-attack probabilities (the expected attacks), then ``lam <- E[work] / E[time]`` and ``c <- E[time]`` of its
-policy until they repeat. At that point the policy's ``E[work] / E[time] - penalty * E[attacks]`` cannot be raised
-to first order by any change of policy.
+time scale ``c`` the program maximises ``E[work - lam * time - c * penalty * extra]``, ``extra`` the sum of the
+steps' heart-attack probabilities above the floor ``r(0)`` that no policy avoids (the expected attacks the drinks
+add). [`heartpole.optimum.lifetime`][heartpole.optimum.lifetime] runs it at the no-drink rate and ``c =
+max_steps`` to show that no drink pays; [`heartpole.optimum.coffee`][heartpole.optimum.coffee] iterates ``lam`` and
+``c`` to a fixed point where drinks may pay.
 
 The grid follows the dynamics without interpolating them, as [`DrinkingGrid`][heartpole.optimum.drinking.DrinkingGrid]
 does for intoxication:
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -172,13 +174,20 @@ class Sweep:
 
 
 def backward(
-    grid: PressureGrid, rate: float, scale: float, kept: int, fixed: np.ndarray | None = None, bonus: float = math.nan
+    grid: PressureGrid,
+    rate: float,
+    scale: float,
+    kept: int,
+    fixed: np.ndarray | None = None,
+    bonus: float = math.nan,
+    stop_at_gain: bool = False,
 ) -> Sweep:
     """Maximise ``E[work - rate * time - scale * penalty * extra]`` over every policy on the grid (``extra``: the
     summed risk above the floor ``max_steps * r(0)``, the expected attacks the drinks add), by a backward
     pass over all ``max_steps`` decisions (or, with ``fixed``, follow those rows: policy evaluation). With a
     ``bonus`` (not NaN) it checks drinks in every state and decision (``Sweep.gains``: see `_step`; a beer's
-    intoxication is credited ``bonus * (1 - decay_rate ** n)`` with ``n`` decisions left)."""
+    intoxication is credited ``bonus * (1 - decay_rate ** n)`` with ``n`` decisions left); ``stop_at_gain`` stops
+    the pass at the first decision where a drink gains (the figures are then those of a shorter episode)."""
     tab, params = grid.tables, grid.params
     shape = grid.shape
     arrays, out, stay, coffee = (np.zeros((3, *shape)) for _ in range(4))
@@ -193,6 +202,8 @@ def backward(
         later = bonus * (1.0 - params.decay_rate**n)  # what intoxication can add over n decisions, at most
         _step(arrays, out, stay, coffee, beer, gains, later, weight, forced, actions[row], *_kernel_tables(tab))
         arrays, out = out, arrays
+        if stop_at_gain and gains.max() > 0:
+            break
     start = arrays[:, 0, 0][:, tab["wake_index"]] @ tab["wake_weight"]
     work, time, attacks = (float(v) for v in start)
     floor = float(tab["floor"][0])
@@ -206,9 +217,36 @@ def _kernel_tables(tab: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
 
 
 @njit(cache=CACHE)
-def _step(nxt, out, stay, coffee, beer, gains, bonus, weight, forced, actions, work, shift, h, risk_stay, risk_sleep,
-          fade_low, fade_w, sleep_low, sleep_w, coffee_low, coffee_w, coffee_ok, wake_index, wake_weight, wake_work,
-          coffee_points, sleep_time, floor):  # fmt: skip
+def _step(
+    nxt: Any,
+    out: Any,
+    stay: Any,
+    coffee: Any,
+    beer: Any,
+    gains: Any,
+    bonus: Any,
+    weight: Any,
+    forced: Any,
+    actions: Any,
+    work: Any,
+    shift: Any,
+    h: Any,
+    risk_stay: Any,
+    risk_sleep: Any,
+    fade_low: Any,
+    fade_w: Any,
+    sleep_low: Any,
+    sleep_w: Any,
+    coffee_low: Any,
+    coffee_w: Any,
+    coffee_ok: Any,
+    wake_index: Any,
+    wake_weight: Any,
+    wake_work: Any,
+    coffee_points: Any,
+    sleep_time: Any,
+    floor: Any,
+) -> Any:
     """One decision back: ``out`` (work, time, attacks) for one more decision left than ``nxt``, and its actions
     (``stay``, ``coffee`` and ``beer`` are work space). With ``beer`` of length > 0 it also raises ``gains[0]`` to
     the most a coffee gains over the best other action in any state, and ``gains[1]`` to the most a beer (its
@@ -284,7 +322,16 @@ def _step(nxt, out, stay, coffee, beer, gains, bonus, weight, forced, actions, w
 
 
 @njit(cache=CACHE)
-def _drink(stay, out, h, coffee_low, coffee_w, coffee_ok, first, last):
+def _drink(
+    stay: Any,
+    out: Any,
+    h: Any,
+    coffee_low: Any,
+    coffee_w: Any,
+    coffee_ok: Any,
+    first: Any,
+    last: Any,
+) -> Any:
     """A drink's value: ``stay`` averaged over hypertension ``+ U(0, 0.3)`` (exact for the piecewise-linear
     interpolant) and alertness ``+ U(first, last) * step`` (the trapezoid rule over the lattice) into ``out``; NaN off
     the grid."""
