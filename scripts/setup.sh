@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 extras="${1:-all}"
 if [[ ! "$extras" =~ ^[a-z]+(,[a-z]+)*$ ]]; then
-  echo "scripts/setup.sh: extras are names separated by commas (train, plot, offline, ray, jax, docs, test, all), got '$extras'" >&2
+  echo "scripts/setup.sh: extras are names separated by commas (train, plot, offline, ray, jax, mo, docs, test, all), got '$extras'" >&2
   exit 2
 fi
 if [ ! -x .venv/bin/python ]; then

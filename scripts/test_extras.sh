@@ -4,6 +4,7 @@
 #   offline  heartpole dataset, its env recovered through Minari, and heartpole ope on it
 #   plot     heartpole plot model
 #   jax      heartpole.jax.make, a reset and a step
+#   mo       mo_gymnasium.make("mo-heartpole-v0"), its vector reward scalarised by LinearReward into v0's reward
 #   train    a tiny heartpole train
 #   ray      a tiny heartpole train --ray over two seeds
 #   docs     the documentation site's strict build (scripts/build_docs.sh)
@@ -12,14 +13,14 @@
 #            into every process that imports Stable-Baselines3): tests/test_clients.py's d3rlpy case
 # The full dev venv hides a missing dependency (pillow came with matplotlib for Minari's HDF5 storage, say).
 # PyTorch's CPU build goes in first where Stable-Baselines3 needs it (train, ray), as in scripts/setup.sh.
-# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all seven; the installs run side by
+# Usage: bash scripts/test_extras.sh [--setup-only] [EXTRA ...]   (default: all eight; the installs run side by
 # side). CI builds the venvs while the slow tests run (--setup-only), then runs the commands.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 setup_only=0
 if [ "${1:-}" = "--setup-only" ]; then setup_only=1; shift; fi
 extras=("$@")
-[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax train ray docs d3rlpy)
+[ ${#extras[@]} -gt 0 ] || extras=(offline plot jax mo train ray docs d3rlpy)
 root=.venv-extras
 stamp=$(sha256sum pyproject.toml | cut -d' ' -f1)
 
@@ -40,8 +41,8 @@ mkdir -p "$root"
 pids=()
 for extra in "${extras[@]}"; do
   case $extra in
-    offline | plot | jax | train | ray | docs | d3rlpy) ;;
-    *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, train, ray, docs, d3rlpy)" >&2; exit 2 ;;
+    offline | plot | jax | mo | train | ray | docs | d3rlpy) ;;
+    *) echo "test_extras: unknown extra '$extra' (offline, plot, jax, mo, train, ray, docs, d3rlpy)" >&2; exit 2 ;;
   esac
   install "$extra" >"$root/$extra.log" 2>&1 &
   pids+=($!)
@@ -85,6 +86,18 @@ env, params = heartpole.jax.make("HeartPole-v0")
 obs, state = env.reset(jax.random.key(0), params)
 obs, *_ = env.step(jax.random.key(1), state, 2, params)
 assert obs.shape == env.observation_space(params).shape'
+      ;;
+    mo)
+      "$bin/python" -c '
+import gymnasium as gym, mo_gymnasium, numpy as np
+import heartpole
+env = mo_gymnasium.wrappers.LinearReward(mo_gymnasium.make("mo-heartpole-v0"), weight=np.float32([1, 100]))
+plain = gym.make("HeartPole-v0")
+env.reset(seed=0)
+plain.reset(seed=0)
+for action in [1, 2, 0, 3] * 50:
+    _, reward, *_, info = env.step(action)
+    assert reward == plain.step(action)[1] and info["vector_reward"].shape == (2,)'
       ;;
     train) "$bin/heartpole" train --timesteps 2000 --n-envs 2 --eval-episodes 10 --out "$work/train" ;;
     ray)

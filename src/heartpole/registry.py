@@ -45,6 +45,9 @@ BUILTIN_IDS = (V0_ID, V1_ID)
 
 ENTRY_POINT = "heartpole.env:HeartPole"
 VECTOR_ENTRY_POINT = "heartpole.vector:HeartPoleVectorEnv"
+MO_ID = "mo-heartpole-v0"
+"""HeartPole-v0 with a vector reward (productivity, health), for MO-Gymnasium (``heartpole.mo``)."""
+MO_ENTRY_POINT = "heartpole.mo:MOHeartPole"
 _BUILTINS: dict[str, dict[str, Any]] = {
     V0_ID: {"entry_points": (ENTRY_POINT, VECTOR_ENTRY_POINT)},
     V1_ID: {
@@ -84,7 +87,8 @@ _variants: set[str] = set()
 
 
 def register_envs() -> None:
-    """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered.
+    """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered, and
+    ``mo-heartpole-v0`` (v0 with a vector reward, for MO-Gymnasium).
 
     Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
     ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so would warn that
@@ -96,6 +100,8 @@ def register_envs() -> None:
     for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
             define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
+    if MO_ID not in gym.registry:  # v0 with a vector reward (heartpole.mo): MO-Gymnasium's env checker is off
+        gym.register(id=MO_ID, entry_point=MO_ENTRY_POINT, max_episode_steps=Params.max_steps, disable_env_checker=True)
     if honour_version_warning_filters() is None:
         warnings.filterwarnings("ignore", V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
 

@@ -19,6 +19,7 @@ from heartpole.cli.common import (
     output_files,
     seed_int,
 )
+from heartpole.cli.frontier import add_frontier_arguments, check_frontier_arguments, run_frontier
 from heartpole.signals import interruptible
 
 if TYPE_CHECKING:
@@ -42,6 +43,10 @@ Covered: HeartPole-v0's actions and variables with other parameters (--param), a
 provably never pays (refused with the reason otherwise: HeartPole-v1, heart_attack_proclivity=0, short
 episodes). See docs/optimum.md.
 
+--frontier solves the optimum at heart-attack penalties from 0 up to where drinks stop paying and prints
+the productivity-risk frontier: each penalty's optimal expected score, heart attacks and drinks per episode;
+--plot draws it, with --policy and --model evaluated (--check episodes) and drawn on it.
+
 --people NAME solves each person of a population (named: default) once, cached (a progress bar while it
 solves; the first solve of the default cohort takes a minute or two), and prints each person's optimum;
 --check then evaluates `oracle` and `expert` under the people and reports their oracle regret. See
@@ -56,7 +61,8 @@ def register(subparsers: Subparsers) -> None:
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  heartpole optimum\n  heartpole optimum --param heart_attack_proclivity=0.8 --out opt/\n"
-        "  heartpole optimum --grid 800 --check 0 --json\n  heartpole optimum --people default",
+        "  heartpole optimum --grid 800 --check 0 --json\n  heartpole optimum --people default\n"
+        "  heartpole optimum --frontier --plot frontier.png --policy expert --policy coffee",
     )
     parser.add_argument(
         "--env", default="HeartPole-v0", type=env_id_type, metavar="ID", help="env id (default: HeartPole-v0)"
@@ -89,6 +95,7 @@ def register(subparsers: Subparsers) -> None:
         help="also solve the optimum over every policy (one that sees the work done and time elapsed too): its "
         "policy's value, the bound above it, and with --check its policy through the evaluator",
     )
+    add_frontier_arguments(parser)
     parser.set_defaults(handler=run_optimum)
 
 
@@ -97,6 +104,9 @@ def run_optimum(args: argparse.Namespace) -> int:
     from heartpole import optimum
 
     kwargs = _params(args.param)
+    check_frontier_arguments(args)
+    if args.frontier:
+        return run_frontier(args, kwargs)
     if args.people is not None:
         return _run_people(args, kwargs)
     if args.out:

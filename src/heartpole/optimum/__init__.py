@@ -65,7 +65,8 @@ never pay), `.drinking` (proclivity 0), `.history` (a history-aware rule measure
 `.whole` (the optimum over every policy, history included, with its bounds), `.played` (the history program a
 solution plays, and its storage), `.pressure` (the program over alertness, blood pressure and time awake, with
 coffee), `.lifetime` (why drinks never pay, over their whole lifetime), `.coffee` (the coffee program's policy where
-drinks may pay), `.point` (a point of the productivity-risk frontier), `.common` (what they share).
+drinks may pay), `.point` (a point of the productivity-risk frontier), `.tradeoff` (the frontier itself: the
+optimum's score against its heart attacks over the penalties), `.common` (what they share).
 """
 
 from __future__ import annotations
@@ -86,6 +87,7 @@ from .people import POPULATION_KWARGS, OracleRegret, PeopleOptimum, oracle_regre
 from .point import FrontierPoint, frontier_point
 from .sleep import MAX_DINKELBACH_ITERATIONS, GridSolution, sleep_rule_value, solve_params
 from .solution import OptimumSolution, available, cache_dir, optimum, optimum_for, solve
+from .tradeoff import Frontier, FrontierRow, frontier, no_drink_threshold
 from .whole import HistoryOptimum, solve_history
 
 __all__ = [
@@ -99,6 +101,8 @@ __all__ = [
     "DrinkingGrid",
     "FrontierPoint",
     "DrinkingSolution",
+    "Frontier",
+    "FrontierRow",
     "GridSolution",
     "HistoryOptimum",
     "NotCoveredError",
@@ -115,7 +119,9 @@ __all__ = [
     "coffee_check",
     "drink_floor",
     "drinking_rule_value",
+    "frontier",
     "frontier_point",
+    "no_drink_threshold",
     "optimum",
     "optimum_for",
     "oracle_regret",

@@ -8,7 +8,8 @@ pyplot, so nothing here touches a display or matplotlib's global state.
 Everything is drawn from the package's own model ([`heartpole.model`][heartpole.model]) and envs, so a
 change to the model shows up in the pictures. One module per kind of picture, every name importable from
 here: `canvas` (the figures' canvas, colours, dependency checks), `curves` (the tutorial's figures),
-`episode` (one episode's dashboard), `learning` (learning curves) and `video` (videos of episodes).
+`episode` (one episode's dashboard), `frontier` (the
+productivity-risk frontier), `learning` (learning curves) and `video` (videos of episodes).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from heartpole.plots.curves import (
     productivity_figure,
 )
 from heartpole.plots.episode import START_DAY, EpisodeTrace, act, episode_days, episode_figure, trace_episode
+from heartpole.plots.frontier import FrontierMark, frontier_figure
 from heartpole.plots.learning import (
     TRAINING_PANELS,
     find_learning_curves,
@@ -56,6 +58,7 @@ __all__ = [
     "TRAINING_PANELS",
     "VIDEO_SUFFIXES",
     "EpisodeTrace",
+    "FrontierMark",
     "act",
     "alertness_decay_figure",
     "ballmer_figure",
@@ -64,6 +67,7 @@ __all__ = [
     "episode_figure",
     "episode_frames",
     "find_learning_curves",
+    "frontier_figure",
     "heart_attack_risk_figure",
     "new_figure",
     "productivity_figure",
