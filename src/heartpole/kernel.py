@@ -30,12 +30,9 @@ from typing import Any, NamedTuple
 import numba
 import numpy as np
 from numba import njit
-from numba.cpython.unsafe.tuple import tuple_setitem as _tuple_setitem
 from numba.core import types as nbtypes
+from numba.cpython.unsafe.tuple import tuple_setitem as _tuple_setitem
 from numba.extending import intrinsic, overload
-from numba.core import cgutils
-from numba.np.numpy_support import carray as _carray
-from numba.np.unsafe.ndarray import to_fixed_tuple as _to_fixed_tuple
 
 from heartpole import jit, lanes, model
 from heartpole import rng as random_numbers  # the module; ``rng`` names envs' generator states here
@@ -46,12 +43,8 @@ from heartpole.lanes import F32, U32, U64, add32, exp32, mul32, shr32, where, xo
 # The compiled functions take and return ``Any``: numba specialises them on the types of their arguments.
 # numba's stubs type an intrinsic's call as never returning, which holds only outside compiled code.
 tuple_setitem: Any = _tuple_setitem
-to_fixed_tuple: Any = _to_fixed_tuple
-carray: Any = _carray
-alloca_once: Any = cgutils.alloca_once
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]  # intrinsics run only in compiled code
     tuple_setitem = model.replace
-    to_fixed_tuple = lambda values, length: tuple(values[:length])  # noqa: E731
 
 
 @njit(**JIT, **INLINE)
@@ -215,114 +208,125 @@ NO_CELLS = np.zeros((0, 0), dtype=np.float32)
 
 
 def source(spec: LoopSpec) -> str:
-    """The Python source of ``numbers(packed, cells, action, i)`` for ``spec``: ``(zeros, effects, tables)``, the
-    zero state, [`ActionEffects`][heartpole.model.ActionEffects] and [`StepTables`][heartpole.model.StepTables] env
-    ``i`` steps with when it takes ``action``. The loops compile it (`numbers`), inlined, for their spec.
+    """The Python source the loops compile for ``spec`` (`read`, `numbers`): ``read(flat)``, once a loop, reads every
+    number of the packed tables ``flat`` (raveled) that the step takes; ``numbers(known, flat, cells, action, i)``,
+    for env ``i``, makes from them the zero state, [`ActionEffects`][heartpole.model.ActionEffects] and
+    [`StepTables`][heartpole.model.StepTables] of its step with ``action``.
 
-    Every index is a constant of the code. A number that differs between actions (``spec.selected``) is read
-    from each action's row before it is selected (``n1_13 if action == 1 else n0_13``: a select, not a load
-    behind a branch, so that LLVM vectorises it); beyond `SELECTED_NUMBERS` of them it is gathered from the
-    action's row. An env's own number (``spec.overlay``) is read from its column of ``cells``. For v0
-    (``print(heartpole.kernel.source(heartpole.Dynamics().spec))``; a person's numbers would add
-    ``cell0, cell1 = cells[0, i], cells[1, i]`` and use them in place of the variant's)::
+    Every index is a constant of the code. A number that differs between actions (``spec.selected``) is chosen by
+    the action (``n50 if action == 2 else n6``: a select between values read before the loop; read in the loop,
+    LLVM merged the choice into a gather, docs/speed.md); beyond `SELECTED_NUMBERS` of them it is gathered from
+    the action's row. An env's own number (``spec.overlay``) comes from its column of ``cells`` (``cell0 =
+    cells[0, i]``). For v0, ``print(heartpole.kernel.source(heartpole.Dynamics().spec))``::
 
-        def numbers(packed, cells, action, i):
-            n0_0, n2_0 = packed[0, 0], packed[2, 0]
-            e0 = n2_0 if action == 2 else n0_0
-            n0_2, n2_2 = packed[0, 2], packed[2, 2]
-            e2 = n2_2 if action == 2 else n0_2
-            n0_6, n1_6, n2_6 = packed[0, 6], packed[1, 6], packed[2, 6]
-            e6 = n2_6 if action == 2 else n1_6 if action == 1 else n0_6
-            n0_7, n1_7, n2_7 = packed[0, 7], packed[1, 7], packed[2, 7]
-            e7 = n2_7 if action == 2 else n1_7 if action == 1 else n0_7
-            n0_8, n2_8 = packed[0, 8], packed[2, 8]
-            e8 = n2_8 if action == 2 else n0_8
-            n0_13, n3_13 = packed[0, 13], packed[3, 13]
-            e13 = n3_13 if action == 3 else n0_13
-            n0_14, n3_14 = packed[0, 14], packed[3, 14]
-            e14 = n3_14 if action == 3 else n0_14
-            n0_18, n3_18 = packed[0, 18], packed[3, 18]
-            e18 = n3_18 if action == 3 else n0_18
-            n0_20, n3_20 = packed[0, 20], packed[3, 20]
-            e20 = n3_20 if action == 3 else n0_20
+        def read(flat):
+            return (flat[0], flat[1], flat[2], flat[3], flat[4], flat[5], flat[6], flat[7], flat[8], flat[9],
+                    flat[10], flat[11], flat[12], flat[13], flat[14], flat[15], flat[16], flat[17], flat[18],
+                    flat[19], flat[20], flat[28], flat[29], flat[44], flat[46], flat[50], flat[51], flat[52],
+                    flat[79], flat[80], flat[84], flat[86], flat[88], flat[89], flat[90], flat[91], flat[92],
+                    flat[93], flat[94], flat[95], flat[96], flat[97], flat[98], flat[99], flat[100], flat[101],
+                    flat[102], flat[103], flat[104], flat[105], flat[106], flat[107], flat[108], flat[109])
+
+
+        def numbers(known, flat, cells, action, i):
+            (n0, n1, n2, n3, n4, n5, n6, n7, n8, n9, n10, n11, n12, n13, n14, n15, n16, n17, n18, n19, n20, n28,
+             n29, n44, n46, n50, n51, n52, n79, n80, n84, n86, n88, n89, n90, n91, n92, n93, n94, n95, n96, n97,
+             n98, n99, n100, n101, n102, n103, n104, n105, n106, n107, n108, n109) = known
+            e0 = n44 if action == 2 else n0
+            e2 = n46 if action == 2 else n2
+            e6 = n50 if action == 2 else n28 if action == 1 else n6
+            e7 = n51 if action == 2 else n29 if action == 1 else n7
+            e8 = n52 if action == 2 else n8
+            e13 = n79 if action == 3 else n13
+            e14 = n80 if action == 3 else n14
+            e18 = n84 if action == 3 else n18
+            e20 = n86 if action == 3 else n20
             zeros = (F32(0.0), F32(0.0), F32(0.0), F32(0.0), F32(0.0), F32(0.0))
             effects = ActionEffects(
-                effect_low=(e0, packed[0, 1], e2, packed[0, 3], packed[0, 4], packed[0, 5]),
-                effect_width=(e6, e7, e8, packed[0, 9], packed[0, 10], packed[0, 11]),
-                rest_fade=(packed[0, 12], e13, e14, packed[0, 15], packed[0, 16], packed[0, 17]),
+                effect_low=(e0, n1, e2, n3, n4, n5),
+                effect_width=(e6, e7, e8, n9, n10, n11),
+                rest_fade=(n12, e13, e14, n15, n16, n17),
                 rest=e18,
-                drowsy=packed[0, 19],
+                drowsy=n19,
                 sleeps=e20,
             )
             tables = StepTables(
-                floor=(packed[4, 0], packed[4, 1], packed[4, 2], packed[4, 3], packed[4, 4], packed[4, 5]),
-                fade=(packed[4, 6], packed[4, 7], packed[4, 8], packed[4, 9], packed[4, 10], packed[4, 11]),
-                anxiety_relief=(packed[4, 12], packed[4, 13], packed[4, 14], packed[4, 15], packed[4, 16], packed[4, 17]),
-                heart_attack_proclivity=packed[4, 18],
-                heart_attack_penalty=packed[4, 19],
-                wake_low=packed[4, 20],
-                wake_width=packed[4, 21],
+                floor=(n88, n89, n90, n91, n92, n93),
+                fade=(n94, n95, n96, n97, n98, n99),
+                anxiety_relief=(n100, n101, n102, n103, n104, n105),
+                heart_attack_proclivity=n106,
+                heart_attack_penalty=n107,
+                wake_low=n108,
+                wake_width=n109,
                 rest_offsets=no_floats(),
             )
             return zeros, effects, tables
     """
     width, n = row_width(spec.variables), spec.variables
+    owners = {column: [p for p in spec.selected if p % width == column] for column in range(width)}
+    own = {p: c for p, c in spec.overlay}
     gather = len(spec.selected) > SELECTED_NUMBERS
-    owners = {column: [p // width for p in spec.selected if p % width == column] for column in range(width)}
-    own = {divmod(p, width): c for p, c in spec.overlay}
+    known: set[int] = set()  # the positions read before the loop
     cells = sorted(set(own.values()))
     lines = [f"    {_tuple(f'cell{c}' for c in cells)} = {_tuple(f'cells[{c}, i]' for c in cells)}"] if cells else []
-    known: list[int] = []  # the positions of the numbers read before the loop, in order
 
-    def constant(position: int) -> str:
-        if position not in known:
-            known.append(position)
-        return f"n{position}"
-
-    def effect(column: int) -> str:
-        changed = [a for a in range(spec.actions) if (a, column) in own]
+    def number(position: int) -> str:
+        column = position % width
+        if position >= spec.actions * width:  # the variant's row
+            return f"cell{own[position]}" if position in own else _known(known, position)
+        changed = [p for p in range(column, spec.actions * width, width) if p in own]
         if not owners[column] and not changed:
-            return constant(column)
+            return _known(known, column)
         if gather and owners[column]:
             lines.append(f"    e{column} = flat[U64(action) * U64({width}) + U64({column})]")
         else:
-            rows = [a * width + column for a in [0, *([] if gather else owners[column])]]
-            expression = constant(column)
-            for p in rows[1:]:
-                expression = f"{constant(p)} if action == {p // width} else {expression}"
+            expression = _known(known, column)
+            for p in [] if gather else owners[column]:
+                expression = f"{_known(known, p)} if action == {p // width} else {expression}"
             lines.append(f"    e{column} = {expression}")
-        lines.extend(f"    e{column} = cell{own[a, column]} if action == {a} else e{column}" for a in changed)
+        lines.extend(f"    e{column} = cell{own[p]} if action == {p // width} else e{column}" for p in changed)
         return f"e{column}"
 
-    def table(column: int) -> str:
-        c = own.get((spec.actions, column))
-        return constant(spec.actions * width + column) if c is None else f"cell{c}"
-
-    def fields(table_fields: model.TableFields, number: Any) -> list[str]:
-        per = len(table_fields.per_variable)
-        groups = [(name, [number(k * n + v) for v in range(n)]) for k, name in enumerate(table_fields.per_variable)]
-        return [f"        {name}=({_tuple(values)})," for name, values in groups] + [
-            f"        {name}={number(per * n + j)}," for j, name in enumerate(table_fields.numbers)
+    def fields(table: model.TableFields, row: int) -> list[str]:
+        per, names = len(table.per_variable), enumerate(table.per_variable)
+        groups = [f"{name}=({_tuple(number(row + k * n + v) for v in range(n))})" for k, name in names]
+        return [
+            f"        {f},"
+            for f in groups + [f"{name}={number(row + per * n + j)}" for j, name in enumerate(table.numbers)]
         ]
 
-    effects = fields(EFFECTS, effect)
-    tables = fields(TABLES, table)
-    offsets = f"({_tuple(f'F32({k}.0)' for k in range(spec.rest_offsets))})"
-    tables.append(f"        rest_offsets={offsets if spec.rest_offsets else 'no_floats()'},")
-    lines += [f"    zeros = ({_tuple(['F32(0.0)'] * n)})", "    effects = ActionEffects(", *effects, "    )"]
-    lines += ["    tables = StepTables(", *tables, "    )", "    return zeros, effects, tables"]
-    known.sort()
-    reads = textwrap.wrap(_tuple(f"flat[{p}]" for p in known), 104, initial_indent="    return (", subsequent_indent=" " * 12)
-    names = textwrap.wrap(_tuple(f"n{p}" for p in known), 104, initial_indent="    (", subsequent_indent=" " * 5)
-    names[-1] += ") = known" if known else "() = known"
-    lines = ["def read(flat):", *reads[:-1], reads[-1] + ")", "", "", "def numbers(known, flat, cells, action, i):", *names, *lines]
-    return "\n".join(lines) + "\n"
+    offsets = f"({_tuple(f'F32({k}.0)' for k in range(spec.rest_offsets))})" if spec.rest_offsets else "no_floats()"
+    body = [f"    zeros = ({_tuple(['F32(0.0)'] * n)})", "    effects = ActionEffects(", *fields(EFFECTS, 0), "    )"]
+    body += [
+        "    tables = StepTables(",
+        *fields(TABLES, spec.actions * width),
+        f"        rest_offsets={offsets},",
+        "    )",
+    ]
+    order = sorted(known)
+    reads = textwrap.wrap(
+        f"return ({_tuple(f'flat[{p}]' for p in order)})", 108, initial_indent="    ", subsequent_indent=" " * 12
+    )
+    names = textwrap.wrap(
+        f"({_tuple(f'n{p}' for p in order)}) = known", 108, initial_indent="    ", subsequent_indent=" " * 5
+    )
+    head = ["def read(flat):", *reads, "", "", "def numbers(known, flat, cells, action, i):", *names, *lines]
+    return "\n".join([*head, *body, "    return zeros, effects, tables"]) + "\n"
+
+
+def _known(known: set[int], position: int) -> str:
+    """The name in `source` of the number at ``position``, which its ``read`` reads (added to ``known``)."""
+    known.add(position)
+    return f"n{position}"
+
+
+unituple: Any = nbtypes.UniTuple  # untyped in numba
 
 
 @intrinsic
 def _no_floats_intrinsic(typingctx: Any) -> Any:
     """An empty tuple of float32 (numba types ``()`` as a tuple of nothing, which it cannot iterate)."""
-    empty = nbtypes.UniTuple(nbtypes.float32, 0)
+    empty = unituple(nbtypes.float32, 0)
     return empty(), lambda context, builder, signature, args: context.get_constant_undef(empty)
 
 
@@ -351,15 +355,15 @@ def _compiled(spec: LoopSpec) -> dict[str, Any]:
 
 
 def read(spec: Any, flat: Any) -> Any:
-    """The numbers that actions choose between, read from the packed tables ``flat`` (raveled) before a loop over
-    envs as `source`'s ``read`` reads them for the `LoopSpec` whose `argument` is ``spec``. Plain Python here
+    """The numbers of the packed tables ``flat`` (raveled) that the step takes, read once before a loop over envs,
+    as `source`'s ``read`` reads them for the `LoopSpec` whose `argument` is ``spec``. Plain Python here
     (``NUMBA_DISABLE_JIT``); compiled code compiles `source` when it compiles the loop, from ``spec``'s type."""
     return _compiled(LoopSpec.of(spec.dtype))["read"](flat)
 
 
 def numbers(spec: Any, known: Any, flat: Any, cells: Any, action: Any, i: Any) -> Any:
-    """``(zeros, effects, tables)`` of env ``i`` taking ``action``, as `source`'s ``numbers`` makes them (``chosen``
-    what `read` gave). Plain Python here, compiled code compiles it as `read`."""
+    """``(zeros, effects, tables)`` of env ``i`` taking ``action``, as `source`'s ``numbers`` makes them (``known``
+    what `read` gave). Plain Python here; compiled code compiles it as `read`."""
     return _compiled(LoopSpec.of(spec.dtype))["numbers"](known, flat, cells, action, i)
 
 
