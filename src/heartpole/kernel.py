@@ -9,13 +9,9 @@ literals become float32 constants, so that the whole step computes in float32. W
 * [`heartpole.rng`][heartpole.rng]'s counter-based generator, compiled: an env's state is its key and its counter;
 * the tables packed in one float32 array ([`pack`][heartpole.kernel.pack]: a row per action, then the variant's);
 * one loop over envs ([`step_envs`][heartpole.kernel.step_envs], [`reset_envs`][heartpole.kernel.reset_envs]; the
-  single env's [`step_one`][heartpole.kernel.step_one] runs it over one env, so the two agree bit for bit),
-  specialised by one [`LoopSpec`][heartpole.kernel.LoopSpec]: which numbers differ between actions, and which
-  are each env's own (a person's). The numbers an env's step reads are generated Python,
-  [`source`][heartpole.kernel.source], which a reader can print.
-
-Compiled code is cached on disk where numba can write (`heartpole.jit`). With ``NUMBA_DISABLE_JIT=1``
-everything runs as plain Python.
+  single env's [`step_one`][heartpole.kernel.step_one] runs it over one env: the two agree bit for bit), specialised
+  by one [`LoopSpec`][heartpole.kernel.LoopSpec] into generated Python a reader can print
+  ([`source`][heartpole.kernel.source]). With ``NUMBA_DISABLE_JIT=1`` everything runs as plain Python.
 """
 
 from __future__ import annotations
@@ -191,11 +187,6 @@ class LoopSpec:
         """The spec an `argument`'s ``dtype`` names: NumPy's dtype or numba's record type alike."""
         (name,) = dtype.fields
         return cls(*ast.literal_eval(name))
-
-    @property
-    def size(self) -> int:
-        """The number of numbers of the packed tables ([`pack`][heartpole.kernel.pack]): a row per action and one."""
-        return (self.actions + 1) * row_width(self.variables)
 
     @property
     def columns(self) -> int:
