@@ -61,35 +61,30 @@ def _no_generator(key_low: Any, key_high: Any, counter: Any, zeros: Any) -> Any:
 
 
 def _loop_with(draws: Any) -> Any:
-    """`kernel._step_envs` with its uniforms from ``draws`` instead of `heartpole.rng`'s generator."""
+    """`kernel._loop` with its uniforms from ``draws`` instead of `heartpole.rng`'s generator."""
 
     @njit(**JIT)
-    def loop(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
+    def loop(envs: Any, results: Any, rng: Any, packed: Any, cells: Any, spec: Any) -> None:
         wide_vectors()
         no_alias()
-        zeros, tables = kernel._unpack(packed, layout)
-        table, width = kernel._action_table(packed, layout, zeros), U64(kernel._row_width(len(zeros)))
+        actions, flat = results.actions, packed.reshape(packed.size)
+        known = kernel.read(spec, flat)
         for index in range(actions.shape[0]):
             i = U64(index)
+            zeros, effects, tables = kernel.numbers(spec, known, flat, cells, actions[i], i)
             state = zeros
             for v in range(len(zeros)):
                 state = kernel.tuple_setitem(state, v, envs[U64(v), i])
             uniforms = draws(
                 rng[U64(kernel.KEY_LOW), i], rng[U64(kernel.KEY_HIGH), i], rng[U64(kernel.COUNTER), i], zeros
             )
-            effects = kernel.action_effects(table, width, layout, actions[i], zeros, selection)
             kernel.store_env(envs, results, rng, i, kernel._step(state, effects, uniforms, tables))
 
     return loop
 
 
-@njit(**JIT)
-def _as_defined(envs: Any, results: Any, actions: Any, rng: Any, packed: Any, layout: Any, selection: Any) -> None:
-    kernel._step_envs(envs, results, actions, rng, packed, layout, selection)
-
-
 LOOPS = {
-    "as defined": _as_defined,
+    "as defined": kernel._loop,
     "half the hashing": _loop_with(_half_hashing),
     "no generator": _loop_with(_no_generator),
 }
@@ -110,7 +105,7 @@ def main() -> None:
         env.step(actions)
         results = env._results()
         results.actions[:] = actions
-        runs.append((loop, (env._envs, results, results.actions, env._rng, *env._loop_arguments), []))
+        runs.append((loop, (env._envs, results, env._rng, *env._loop_arguments), []))
         loop(*runs[-1][1])  # compiled before timing
     for _ in range(args.blocks):
         for loop, arguments, times in runs:

@@ -323,7 +323,7 @@ def anatomy(env_id: str, n: int, anchor: float) -> None:
     results = new_results(n, len(env._envs))
 
     def loop() -> None:  # the actions' check, the step and the observations, as one call
-        kernel.step_envs(env._envs, results, actions, env._rng, dynamics.packed, dynamics.layout, dynamics.selection)
+        kernel.step_envs(env._envs, results, actions, env._rng, *env._loop_arguments)
 
     compiled = best_time(loop)
     print(

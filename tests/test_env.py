@@ -367,7 +367,7 @@ def test_compiled_for_is_the_same_code_without_dispatch_and_plain_functions_stay
 
     env = heartpole.HeartPole()
     env.reset(seed=13)
-    arguments = (env._rng, env.dynamics.packed, env.dynamics.layout, env.dynamics.selection)
+    arguments = env._kernel_arguments  # the generator state, packed tables, cells and spec
     direct = compiled_for(kernel.step_one, (env._envs, 0, *arguments))
     assert direct is not kernel.step_one  # numba's compiled entry point, not its dispatcher
     twin = copy.deepcopy(env)

@@ -7,12 +7,17 @@ Statistical checks name their tolerance; the seeds are fixed, so each test is de
 from __future__ import annotations
 
 import copy
+import dataclasses
+import json
 import math
 import os
 import pickle
+import re
 import subprocess
 import sys
+import textwrap
 
+import numba
 import numpy as np
 import pytest
 from numba import njit
@@ -265,25 +270,24 @@ def test_everything_runs_without_numba_compiling(tmp_path) -> None:
 
 @pytest.mark.parametrize("variant", ["v0", "v1"])
 def test_the_packed_rows_read_back_as_the_models_tables(variant) -> None:
-    """The kernel's layout is derived from the model's table definitions: what pack writes, the compiled
-    readers (by row, and by masks as the loop over envs selects an action) read back exactly."""
+    """The kernel's layout is derived from the model's table definitions: what pack writes, the generated code
+    (kernel.source) reads back exactly, compiled, for every action, with masks (the variant's own spec) and
+    gathered (every number of the action rows named as differing, beyond SELECTED_NUMBERS)."""
     dynamics = Dynamics() if variant == "v0" else Dynamics(V1_ACTIONS, variables=V1_VARIABLES)
-    packed, layout, u64 = dynamics.packed, dynamics.layout, np.uint64
+    packed = dynamics.packed
     assert packed.shape == (len(dynamics.actions) + 1, kernel.row_width(len(dynamics.variables)))
+    everything = dataclasses.replace(dynamics.spec, selected=tuple(range(packed.shape[1], packed[:-1].size)))
+    assert len(everything.selected) > kernel.SELECTED_NUMBERS
 
     @njit
-    def read(packed, layout, action, selection):
-        zeros, tables = kernel._unpack(packed, layout)
-        table = kernel._action_table(packed, layout, zeros)
-        by_row = kernel.read_effects(packed[action], u64(0), zeros, ())
-        first = kernel.read_effects(table, u64(0), zeros, ())
-        by_masks = kernel.select(first, table, np.int32(action), selection)
-        return tables, by_row, by_masks
+    def read(packed, action, spec):
+        flat = packed.reshape(packed.size)
+        return kernel.numbers(spec, kernel.read(spec, flat), flat, kernel.NO_CELLS, np.int32(action), np.uint64(0))
 
-    for action, effects in enumerate(dynamics.effects):
-        tables, by_row, by_masks = read(packed, layout, action, dynamics.selection)
-        assert by_row == effects and by_masks == effects
-    assert tables == dynamics.tables
+    for spec in (dynamics.spec, everything):
+        for action, effects in enumerate(dynamics.effects):
+            zeros, by_spec, tables = read(packed, action, spec.argument)
+            assert by_spec == effects and tables == dynamics.tables and zeros == (0.0,) * len(dynamics.variables)
 
 
 def test_the_selection_names_exactly_the_numbers_that_differ_from_the_first_actions() -> None:
@@ -291,16 +295,31 @@ def test_the_selection_names_exactly_the_numbers_that_differ_from_the_first_acti
     (a mask per action and number would be 33). -0.0 and 0.0 differ, bit for bit."""
     dynamics = Dynamics()
     width = kernel.row_width(len(dynamics.variables))
-    named = sorted(int(name[1:]) for name in dynamics.selection.dtype.names if name != "first")
     rows = dynamics.packed[:4]
     expected = [k * width + c for k in (1, 2, 3) for c in range(width) if rows[k, c] != rows[0, c]]
-    assert named == expected and len(named) == 11
+    assert list(dynamics.spec.selected) == expected and len(expected) == 11
     signed = dynamics.packed.copy()
     signed[2, 3] = -0.0  # beer lowers time_since_slept's effect by -0.0: the same number, other bits
-    assert f"p{2 * width + 3}" in kernel.selection_for(signed, 4).dtype.names
+    assert 2 * width + 3 in kernel.selection(signed, 4)
     # no sleep and no fading make sleep's rest and fades equal to doing nothing's: the loop stays v0's all the same
     for params in (parameters.Params(sleep_half_hours=0), parameters.Params(decay_rate=1.0)):
-        assert Dynamics(params=params).selection.dtype == dynamics.selection.dtype
+        assert Dynamics(params=params).spec == dynamics.spec
+
+
+def test_a_loop_spec_is_its_arguments_type_and_refuses_overlays_it_cannot_place() -> None:
+    """The spec travels to compiled code as the dtype of an empty array and comes back equal; an overlay needs each
+    position once and integers >= 0, and names what it got otherwise."""
+    spec = kernel.LoopSpec(6, 0, 4, (28, 29), ((79, 0), (80, 0), (84, 1)))
+    assert spec.argument.shape == (0,) and kernel.LoopSpec.of(spec.argument.dtype) == spec and spec.columns == 2
+    assert kernel.LoopSpec.of(numba.typeof(spec.argument).dtype) == spec
+    for overlay in (((79, 0), (79, 1)), ((79, -1),), ((-1, 0),)):
+        with pytest.raises(ValueError, match=re.escape(f"got {list(overlay)}")):
+            kernel.LoopSpec(6, 0, 4, (), overlay)
+
+
+def test_the_source_docstring_shows_what_v0_compiles() -> None:
+    """kernel.source's docstring holds v0's generated source exactly, so a reader sees what the loop compiles."""
+    assert textwrap.indent(kernel.source(Dynamics().spec), " " * 8) in (kernel.source.__doc__ or "")
 
 
 @pytest.mark.slow
@@ -322,3 +341,45 @@ def test_an_edit_of_the_model_alone_recompiles_the_cached_kernel(tmp_path) -> No
     assert line in model_file.read_text()
     model_file.write_text(model_file.read_text().replace(line, line + "    worked = worked * 3.0\n"))
     assert run() == pytest.approx(3 * before, rel=1e-6)
+
+
+USE_THE_PEOPLE_LOOPS = """
+import json
+import numpy as np
+from numba.core import event
+import heartpole
+
+with event.install_recorder("numba:compile") as recorder:
+    vector = heartpole.HeartPoleVectorEnv(4, people="default")
+    vector.reset(seed=0)
+    vector.step(np.zeros(4, dtype=np.int64))
+    single = heartpole.HeartPole(people="default")
+    single.reset(seed=0)
+    single.step(0)
+functions = {
+    f"{e.data['dispatcher'].py_func.__module__}.{e.data['dispatcher'].py_func.__qualname__}"
+    for _, e in recorder.buffer
+    if e.is_start
+}
+print(json.dumps(sorted(f for f in functions if f.startswith("heartpole."))))
+"""
+
+
+@pytest.mark.slow  # two fresh processes, the first compiling every loop of people='default' (tens of seconds)
+def test_a_second_process_loads_the_people_loops_from_the_disk_cache(tmp_path) -> None:
+    """The loops of people="default" (vector env step and reset, single env step) are compiled by the first
+    process that uses them and loaded from numba's disk cache by the next: it compiles nothing of HeartPole's.
+    (The people's LoopSpec is in the loops' argument types, which key the cache.)"""
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    environment.pop("NUMBA_DISABLE_JIT", None)
+
+    def compiled() -> list[str]:
+        done = subprocess.run(
+            [sys.executable, "-c", USE_THE_PEOPLE_LOOPS], capture_output=True, text=True, check=True, env=environment
+        )
+        return list(json.loads(done.stdout))
+
+    first = [name for name in compiled() if name.startswith("heartpole.kernel.")]
+    for loop in ("_loop", "step_envs", "reset_envs", "step_one"):  # the first process compiled each of them
+        assert any(name.endswith(loop) for name in first), (loop, first)
+    assert compiled() == []

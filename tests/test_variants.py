@@ -85,7 +85,8 @@ def test_v0_keeps_its_spaces_actions_and_formula() -> None:
     dynamics = heartpole.Dynamics()
     assert [a.name for a in dynamics.actions] == ["do_nothing", "drink_coffee", "drink_beer", "sleep"]
     assert dynamics.tables.anxiety_relief == (0.0,) * 6  # no calm: productivity is the tutorial's
-    assert [len(part) for part in dynamics.layout] == [6, 0, 4]
+    spec = dynamics.spec
+    assert (spec.variables, spec.rest_offsets, spec.actions) == (6, 0, 4)
     assert heartpole.HeartPole().observation_space.shape == (6,)
     assert productivity(2.7, 0.02) == productivity(2.7, 0.02, 0.0)
 

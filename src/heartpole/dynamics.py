@@ -33,9 +33,8 @@ class Dynamics:
         effects: each action's [`ActionEffects`][heartpole.model.ActionEffects], in action-index order.
         tables: the variables' and parameters' [`StepTables`][heartpole.model.StepTables].
         packed: the same as one float32 array, as [`step_envs`][heartpole.kernel.step_envs] takes them.
-        layout: the variant's shape, as [`layout`][heartpole.kernel.layout] gives it to compiled code.
-        selection: which numbers of the action rows differ between actions, as compiled code takes them
-            ([`selection_for`][heartpole.kernel.selection_for]).
+        spec: what the compiled loop is specialised on ([`LoopSpec`][heartpole.kernel.LoopSpec]): the variant's
+            shape and which numbers of the action rows differ between actions.
 
     Raises:
         ValueError: a definition that is not an Action or Variable; no action; duplicate names; variables that
@@ -59,12 +58,13 @@ class Dynamics:
             self.effects, self.tables = step_tables(self.actions, self.variables, self.params)
         _check_float32(self.effects, self.tables)
         self.packed = kernel.pack(self.effects, self.tables)
-        self.layout = kernel.layout(len(self.variables), len(self.tables.rest_offsets), len(self.actions))
         # the numbers that differ between actions with these parameters or the defaults: loops shared by parameters
         defaults = []
         if self.params != Params():
             defaults.append(kernel.pack(*step_tables(self.actions, self.variables, Params())))
-        self.selection = kernel.selection_for(self.packed, len(self.actions), *defaults)
+        selected = kernel.selection(self.packed, len(self.actions), *defaults)
+        shape = (len(self.variables), len(self.tables.rest_offsets), len(self.actions))
+        self.spec = kernel.LoopSpec(*shape, selected)
 
     def action_index(self, name: str) -> int:
         """The index of the action called ``name``."""

@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
-from heartpole import kernel, person_kernel
+from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.dynamics import Dynamics
@@ -330,15 +330,12 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         envs = np.zeros((len(self.dynamics.variables), 1), dtype=np.float32)
         rng = kernel.generator_states(self.np_random, 1)
         which = np.ones(1, dtype=bool)
-        if self._persons is None:
-            kernel.reset_envs(envs, rng, which, self.dynamics.packed, self.dynamics.layout)
-        else:
+        if self._persons is not None:
             assert self.people is not None and people_rng is not None
             self._sample = self.people.sample(people_rng, 1)
             self._person, self._traits = int(self._sample.person[0]), self._sample.traits()
             self._persons.assign(self._cells, which, self._sample)  # type: ignore[arg-type]
-            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
-            person_kernel.reset_envs(envs, rng, which, flat, layout, self._cells, overlay)
+        kernel.reset_envs(envs, rng, which, self.dynamics.packed, *self._loop_spec())
         self._envs, self._rng = envs, rng
         self._plan()
         if self._observer.sensor is not None:
@@ -358,12 +355,8 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         envs = self._envs
         if envs is None:
             raise ResetNeeded("call reset() before step() in HeartPole")
-        if self._persons is None:  # the arguments spelled out: a call with *arguments costs 40 ns more
-            dynamics = self.dynamics
-            step = self._step_kernel(envs, index, self._rng, dynamics.packed, dynamics.layout, dynamics.selection)
-        else:
-            step = self._step_kernel(envs, index, *self._kernel_arguments)
-        reward, worked, risk, attack, new_score = step
+        rng, packed, cells, spec = self._kernel_arguments  # spelled out: a call with *arguments costs 40 ns more
+        reward, worked, risk, attack, new_score = self._step_kernel(envs, index, rng, packed, cells, spec)
         self._steps = steps = self._steps + 1
         info = {
             "action_taken": index,
@@ -411,20 +404,19 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
         step with the arguments that follow the action."""
         self._row = None if self._envs is None else self._envs[:, 0]
         self._plain = self._observer.plain and self.people is None
-        step: Any
-        arguments: tuple[Any, ...]
-        dynamics = self.dynamics
-        if self._persons is None:
-            step, arguments = kernel.step_one, (self._rng, dynamics.packed, dynamics.layout, dynamics.selection)
-        else:
-            flat, overlay = self._persons.flat, self._persons.overlay
-            step = person_kernel.step_one
-            arguments = (self._rng, flat, dynamics.layout, self._cells, overlay, dynamics.selection)
+        step: Any = kernel.step_one
+        arguments = (self._rng, self.dynamics.packed, *self._loop_spec())
         self._kernel_arguments = arguments
         if self._envs is None:
             self._step_kernel = step
         elif getattr(self, "_step_kernel", step) is step:  # typed once: every episode's arrays have the same types
             self._step_kernel = compiled_for(step, (self._envs, 0, *arguments))
+
+    def _loop_spec(self) -> tuple[np.ndarray, np.ndarray]:
+        """The loop's ``cells`` and ``spec`` arguments after ``packed``: the person's numbers, if any."""
+        if self._persons is None:
+            return kernel.NO_CELLS, self.dynamics.spec.argument
+        return self._cells, self._persons.spec.argument  # type: ignore[return-value]
 
     def __getstate__(self) -> dict[str, Any]:
         """The env's state for ``pickle`` and ``copy``: without what `_plan` derives (views and compiled code)."""

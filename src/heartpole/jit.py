@@ -108,14 +108,15 @@ alloca_once: Any = cgutils.alloca_once
 
 
 @intrinsic
-def _on_the_stack_intrinsic(typingctx: Any, value: Any) -> Any:
-    """A pointer to room for one ``value`` on the stack of the compiled function that calls it."""
+def _on_the_stack_intrinsic(typingctx: Any, value: Any, like: Any) -> Any:
+    """A pointer to room for ``len(like)`` values like ``value`` (``like`` a tuple) on the stack of the compiled
+    function that calls it."""
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return alloca_once(builder, context.get_data_type(value))
+        return alloca_once(builder, context.get_data_type(value), size=len(like))
 
     pointer: Any = nbtypes.CPointer
-    return pointer(value)(value), codegen
+    return pointer(value)(value, like), codegen
 
 
 _on_the_stack: Any = _on_the_stack_intrinsic
@@ -124,13 +125,20 @@ _on_the_stack: Any = _on_the_stack_intrinsic
 @njit(**JIT, **INLINE)
 def one(value: Any) -> Any:
     """A one-item array holding ``value``, on the caller's stack (no allocation)."""
-    array = carray(_on_the_stack(value), 1)
+    array = carray(_on_the_stack(value, (value,)), 1)
     array[0] = value
     return array
 
 
+@njit(**JIT, **INLINE)
+def column(like: Any) -> Any:
+    """A ``(len(like), 1)`` array of the type of ``like``'s items (a tuple), on the caller's stack, uninitialised."""
+    return carray(_on_the_stack(like[0], like), (len(like), 1))
+
+
 if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     one = lambda value: np.full(1, value)  # type: ignore[assignment]  # noqa: E731
+    column = lambda like: np.zeros((len(like), 1), dtype=type(like[0]))  # type: ignore[assignment]  # noqa: E731
 
 
 VECTOR_WIDTH = 512

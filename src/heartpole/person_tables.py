@@ -1,4 +1,4 @@
-"""Each env's person as the numbers [`heartpole.person_kernel`][heartpole.person_kernel] reads.
+"""Each env's person as the numbers the compiled loop ([`heartpole.kernel`][heartpole.kernel]) reads from ``cells``.
 
 [`PersonTables`][heartpole.person_tables.PersonTables] binds a population
 ([`People`][heartpole.people.People]) to a variant ([`Dynamics`][heartpole.dynamics.Dynamics]): which numbers
@@ -16,7 +16,7 @@ import types
 
 import numpy as np
 
-from heartpole import kernel, person_kernel
+from heartpole import kernel
 from heartpole.dynamics import Dynamics, step_tables
 from heartpole.parameters import Params
 from heartpole.people import People, Sample, field_columns
@@ -27,10 +27,9 @@ class PersonTables:
 
     Attributes:
         people: the population.
-        flat: the kernel's ``flat`` table: the variant's packed numbers, raveled.
-        positions: ``(k,)`` the numbers (indices into ``flat``) that differ between people.
-        overlay: the loops' ``overlay`` for those positions ([`overlay_for`][heartpole.person_kernel.overlay_for]):
-            which row of the cells ([`cells`][heartpole.person_tables.PersonTables.cells]) each is read from.
+        positions: ``(k,)`` the numbers (indices into the variant's packed tables raveled) that differ between people.
+        spec: the variant's [`LoopSpec`][heartpole.kernel.LoopSpec] with those positions as its overlay: which row
+            of the cells ([`cells`][heartpole.person_tables.PersonTables.cells]) each is read from.
     """
 
     def __init__(self, dynamics: Dynamics, people: People) -> None:
@@ -43,7 +42,6 @@ class PersonTables:
         else:
             probes = self._packed_many(self._probes())
         self.positions = np.flatnonzero(np.any(probes != self._base.ravel(), axis=0))
-        self.flat = np.ascontiguousarray(self._base.ravel())
         columns = np.arange(len(self.positions))
         if people.cohort:  # numbers equal for every member share a column (hypertension and alcohol fade alike)
             values = self._cohort[:, self.positions]
@@ -51,12 +49,13 @@ class PersonTables:
             columns = np.argsort(np.argsort(first))[columns.ravel()]
             # the members' numbers, a column of the cells per row: an env's are its member's column of these
             self._members = np.ascontiguousarray(self._cohort[:, np.sort(self.positions[first])].T, dtype=np.float32)
-        self.overlay = person_kernel.overlay_for(self.positions.tolist(), columns.tolist())
+        overlay = tuple(zip(self.positions.tolist(), columns.tolist()))
+        self.spec = dataclasses.replace(dynamics.spec, overlay=overlay)
 
     def cells(self, n: int) -> np.ndarray:
         """The loops' ``cells`` for ``n`` envs before any draw (zeros): ``(columns, n)`` float32, row ``c`` each
-        env's value of the numbers the `overlay` reads from column ``c``."""
-        return np.zeros((self.overlay.dtype.itemsize // 4, n), dtype=np.float32)
+        env's value of the numbers the `spec`'s overlay reads from column ``c``."""
+        return np.zeros((self.spec.columns, n), dtype=np.float32)
 
     def assign(self, cells: np.ndarray, which: np.ndarray, sample: Sample) -> None:
         """Give the envs ``which`` (a mask, or indices) the people of ``sample`` (in env order), in place."""
@@ -75,11 +74,10 @@ class PersonTables:
         column of ``cells`` where people differ in it, else the variant's own; ``(n,)``, a new array."""
         packed = self._base
         column = len(kernel.TABLES.per_variable) * len(self.dynamics.variables) + kernel.TABLES.numbers.index(name)
-        key = f"p{(packed.shape[0] - 1) * packed.shape[1] + column}"
-        fields = self.overlay.dtype.fields
-        if fields is None or key not in fields:
+        row = dict(self.spec.overlay).get((packed.shape[0] - 1) * packed.shape[1] + column)
+        if row is None:
             return np.full(cells.shape[1], packed[-1, column], dtype=np.float32)
-        return cells[int(fields[key][1]) // 4].copy()
+        return cells[row].copy()
 
     # ----------------------------------------------------------------------------------------------------
     def _packed_one(self, params: Params) -> np.ndarray:

@@ -14,7 +14,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from heartpole import kernel, person_kernel
+from heartpole import kernel
 from heartpole import render as rendering
 from heartpole.actions import Action
 from heartpole.arrays import Recycler, new_results, placed
@@ -108,7 +108,7 @@ class HeartPoleVectorEnv(VectorEnv):
     one generator spawned from ``self.np_random`` at each ``reset``), ``info["person"]`` ``(num_envs,)`` int64
     and ``info["traits"]`` ``(num_envs, len(people.traits))`` float32 (read-only: copy them to change them) hold
     the current episodes' people (with ``SAME_STEP``, ``final_info`` holds the ended ones'), and
-    ``self.people`` the population. The step stays one compiled loop (`heartpole.person_kernel`). With
+    ``self.people`` the population. The step stays one compiled loop (`heartpole.kernel`). With
     people, env 0 is still the single env bit for bit; with a measurement, its noise differs after ``reset``
     (drawn for all envs at once).
 
@@ -348,16 +348,15 @@ class HeartPoleVectorEnv(VectorEnv):
         """The compiled loop over envs (v0's or the people's) for the types of this env's arrays, called without
         numba's dispatch (`heartpole.env.compiled_for`), kept for every later step: the arguments after the
         actions and the generator states are in `_loop_arguments`."""
-        function: Any
-        dynamics = self.dynamics
-        if self._persons is None:
-            function, self._loop_arguments = kernel.step_envs, (dynamics.packed, dynamics.layout, dynamics.selection)
-        else:
-            flat, overlay = self._persons.flat, self._persons.overlay
-            function = person_kernel.step_envs
-            self._loop_arguments = (flat, dynamics.layout, self._cells, overlay, dynamics.selection)
-        self._loop = compiled_for(function, (self._envs, results, action, self._rng, *self._loop_arguments))
+        self._loop_arguments = (self.dynamics.packed, *self._loop_spec())
+        self._loop = compiled_for(kernel.step_envs, (self._envs, results, action, self._rng, *self._loop_arguments))
         return self._loop
+
+    def _loop_spec(self) -> tuple[np.ndarray, np.ndarray]:
+        """The loop's ``cells`` and ``spec`` arguments after ``packed``: the people's numbers, if any."""
+        if self._persons is None:
+            return kernel.NO_CELLS, self.dynamics.spec.argument
+        return self._cells, self._persons.spec.argument  # type: ignore[return-value]
 
     def __getstate__(self) -> dict[str, Any]:
         """The env's state for ``pickle`` and ``copy``: without the compiled loop, planned again at the next step."""
@@ -406,13 +405,9 @@ class HeartPoleVectorEnv(VectorEnv):
     def _restart(self, which: np.ndarray, draw: bool = True) -> None:
         """Start the envs where ``which`` afresh, with new people if ``draw`` (autoreset); their random numbers
         go on from their generator states."""
-        if self._persons is None:
-            kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, self.dynamics.layout)
-        else:
-            if draw:
-                self._new_people(which, int(which.sum()))
-            flat, layout, overlay = self._persons.flat, self.dynamics.layout, self._persons.overlay
-            person_kernel.reset_envs(self._envs, self._rng, which, flat, layout, self._cells, overlay)
+        if self._persons is not None and draw:
+            self._new_people(which, int(which.sum()))
+        kernel.reset_envs(self._envs, self._rng, which, self.dynamics.packed, *self._loop_spec())
         self._starts[which] = self._clock
         self._next_end = int(self._starts.min()) + self.max_steps
         self._last_actions[which], self._last_attacks[which], self._heart_attacks[which] = -1, False, 0
