@@ -432,3 +432,20 @@ def test_a_parameter_the_solvers_do_not_model_is_refused_away_from_its_default()
     changed = types.SimpleNamespace(params=extended(work_scale=2.0), variables=v0.variables, actions=v0.actions)
     with pytest.raises(NotCoveredError, match=r"sets \{'work_scale': 2.0\}; the optimum's solvers model"):
         check_covered("HeartPole-v0", changed)
+
+
+def test_a_refusal_is_cached_on_disk_and_one_solve_serves_waiting_processes(tmp_path, monkeypatch) -> None:
+    from heartpole.optimum import solution as module
+
+    refused = Params(heart_attack_penalty=0.0)  # drinking pays: refused (others take the lifetime check a minute)
+    first = module._cached(refused, str(tmp_path))
+    assert isinstance(first, NotCoveredError)
+    assert len(list((tmp_path / "optimum").glob(f"*/{module.REFUSAL_NAME}"))) == 1
+
+    def solve(*args, **kwargs):
+        raise AssertionError("solved again")
+
+    monkeypatch.setattr(module, "_solve", solve)
+    module._cached.cache_clear()  # a new process: only the disk remembers
+    again = module._cached(refused, str(tmp_path))
+    assert isinstance(again, NotCoveredError) and str(again) == str(first)

@@ -143,7 +143,7 @@ def test_the_prompt_wraps_many_actions_to_80_columns() -> None:
 def test_an_env_that_is_not_heartpole_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     from heartpole.cli import main
 
-    for env_id, words in (("Nope-v0", "cannot play 'Nope-v0'"), ("CartPole-v1", "is not a HeartPole env")):
+    for env_id, words in (("Nope-v0", "'Nope-v0' is not a HeartPole env"), ("CartPole-v1", "is not a HeartPole env")):
         assert main(["play", "--env", env_id]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("heartpole play: error:") and words in err[0]

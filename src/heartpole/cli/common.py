@@ -230,3 +230,12 @@ def env_id_type(text: str) -> str:
         return check_heartpole_id(text, "--env")
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error).removeprefix("--env: ")) from None
+
+
+def heartpole_env(env_id: str) -> str:
+    """``env_id`` if it is a HeartPole id, else a one-line [`CommandError`][heartpole.cli.common.CommandError] (see
+    [`env_id_type`][heartpole.cli.common.env_id_type]), for the commands that check their arguments as they run."""
+    try:
+        return env_id_type(env_id)
+    except argparse.ArgumentTypeError as error:
+        raise CommandError(f"--env: {error}") from None

@@ -15,7 +15,7 @@ import sys
 from typing import TextIO
 
 from heartpole import files
-from heartpole.cli.common import CommandError, Subparsers, env_id_type, format_table, positive_int, seed_int
+from heartpole.cli.common import CommandError, Subparsers, format_table, heartpole_env, positive_int, seed_int
 from heartpole.game import (
     Game,
     KeyReader,
@@ -62,9 +62,7 @@ def register(subparsers: Subparsers) -> None:
         metavar="N",
         help="episodes per built-in policy for the comparison (200)",
     )
-    parser.add_argument(
-        "--env", default=DEFAULT_ENV, type=env_id_type, metavar="ID", help=f"HeartPole env id ({DEFAULT_ENV})"
-    )
+    parser.add_argument("--env", default=DEFAULT_ENV, metavar="ID", help=f"HeartPole env id ({DEFAULT_ENV})")
     parser.set_defaults(handler=play)
 
 
@@ -75,7 +73,7 @@ def play(args: argparse.Namespace) -> int:
 
     seed = args.seed if args.seed is not None else int(np.random.default_rng().integers(0, 2**31))
     try:
-        game = new_game(args.env, args.steps, seed)
+        game = new_game(heartpole_env(args.env), args.steps, seed)
     except ValueError as error:
         raise CommandError(str(error)) from None
     out = sys.stdout

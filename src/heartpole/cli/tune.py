@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from heartpole import files, paths
-from heartpole.cli.common import CommandError, Subparsers, env_id_type, format_table, not_empty, one_line_error
+from heartpole.cli.common import CommandError, Subparsers, format_table, heartpole_env, not_empty, one_line_error
 from heartpole.cli.train import (
     RAY_EXTRA,
     check_cpus_per_trial,
@@ -71,9 +71,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--seeds-per-trial", default="2", metavar="K", help="seeds each trial trains (default 2)")
     parser.add_argument("--timesteps", metavar="N", help="env steps per seed (default: the preset's, 400,000)")
     parser.add_argument("--n-envs", metavar="K", help="envs stepped side by side (default: the preset's, 16)")
-    parser.add_argument(
-        "--env", default="HeartPole-v0", type=env_id_type, metavar="ID", help="env id (default: HeartPole-v0)"
-    )
+    parser.add_argument("--env", default="HeartPole-v0", metavar="ID", help="env id (default: HeartPole-v0)")
     parser.add_argument("--eval-episodes", default="2000", metavar="N", help="evaluation episodes (default 2000)")
     parser.add_argument("--eval-seed", default="0", metavar="S", help="evaluation seed (default 0)")
     parser.add_argument("--search-seed", default="0", metavar="S", help="seed of Optuna's sampler (default 0)")
@@ -101,7 +99,7 @@ def build_settings(args: argparse.Namespace) -> SearchSettings:
         raise CommandError(f"unknown algorithm {args.algo!r} for a search; choose one of {', '.join(SEARCHABLE)}")
     trials = whole_number("--trials", args.trials, 1)
     per_trial = whole_number("--seeds-per-trial", args.seeds_per_trial, 1)
-    overrides: dict[str, Any] = {"env_id": args.env}
+    overrides: dict[str, Any] = {"env_id": heartpole_env(args.env)}
     for name, key in (("--timesteps", "timesteps"), ("--n-envs", "n_envs")):
         value = whole_number(name, getattr(args, key), 1)
         if value is not None:

@@ -3,12 +3,13 @@ entry points, and the cache."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -274,31 +275,86 @@ def available(env_id: str = "HeartPole-v0", env_kwargs: Mapping[str, Any] | None
 
 @functools.lru_cache(maxsize=32)
 def _cached(params: Params, cache_root: str) -> OptimumSolution | NotCoveredError:
-    """The solution of ``params`` from memory, the disk cache or a fresh solve; a refusal is kept too."""
+    """The solution of ``params`` (or the solver's refusal) from memory, the disk cache or a fresh solve.
+
+    A solve holds a lock on its cache entry, so processes that want the same solution at once (test workers, Ray
+    trials) solve it once: the others wait, then read it from the disk.
+    """
     key = hashlib.sha256(
         json.dumps([SOLVER_VERSION, DEFAULT_GRID, params_dict(params)], sort_keys=True).encode()
     ).hexdigest()[:16]
     directory = Path(cache_root) / "optimum" / key
+    found = _stored(directory, params, warn=False)
+    if found is not None:
+        return found
+    with _solving(directory):
+        found = _stored(directory, params, warn=True)  # another process may have solved it meanwhile
+        if found is not None:
+            return found
+        try:
+            solution = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params))
+        except NotCoveredError as error:
+            _store_refusal(directory, params, error)
+            return error
+        try:
+            solution.save(directory)
+        except OSError:  # a read-only home still gets the solution, just not cached on disk
+            pass
+    return solution
+
+
+REFUSAL_NAME = "refused.json"
+"""The file a refusal is cached in (some take the lifetime check a minute to find)."""
+
+
+def _stored(directory: Path, params: Params, warn: bool) -> OptimumSolution | NotCoveredError | None:
+    """The solution or refusal cached in ``directory`` for ``params``; ``None`` when there is none (a damaged or
+    mismatched entry is said, with ``warn``, and solved again)."""
+    try:
+        refusal = json.loads((directory / REFUSAL_NAME).read_text())
+        if refusal.get("solver_version") == SOLVER_VERSION and refusal.get("params") == params_dict(params):
+            return NotCoveredError(str(refusal["message"]))
+    except (OSError, ValueError, AttributeError, KeyError):
+        pass
     try:
         solution = OptimumSolution.load(directory)
         if solution.params == params and solution.grid == DEFAULT_GRID:
             return solution
         damaged = f"{directory} holds another solution"
     except FileNotFoundError:
-        damaged = None
+        return None
     except ValueError as error:
         damaged = str(error)
-    if damaged is not None:  # said once per process: this function is cached
-        warnings.warn(f"the cached optimum cannot be used ({damaged}); solving it again", RuntimeWarning, stacklevel=2)
+    if warn:  # said once per process: _cached is cached
+        warnings.warn(f"the cached optimum cannot be used ({damaged}); solving it again", RuntimeWarning, stacklevel=3)
+    return None
+
+
+def _store_refusal(directory: Path, params: Params, error: NotCoveredError) -> None:
+    record = {"solver_version": SOLVER_VERSION, "params": params_dict(params), "message": str(error)}
     try:
-        solution = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params))
-    except NotCoveredError as error:
-        return error
+        files.write_json(directory / REFUSAL_NAME, record)
+    except OSError:
+        pass  # not cached on disk: refused again next time
+
+
+@contextlib.contextmanager
+def _solving(directory: Path) -> Iterator[None]:
+    """Hold an exclusive lock on the cache entry ``directory`` (blocking) while the block runs; no lock where the
+    cache cannot be written or the platform has no ``fcntl``."""
     try:
-        solution.save(directory)
-    except OSError:  # a read-only home still gets the solution, just not cached on disk
-        pass
-    return solution
+        import fcntl
+
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        handle = os.open(directory.parent / f".{directory.name}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(handle)
 
 
 def cache_dir() -> Path:
