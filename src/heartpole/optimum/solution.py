@@ -340,14 +340,17 @@ def _store_refusal(directory: Path, params: Params, error: NotCoveredError) -> N
 
 @contextlib.contextmanager
 def _solving(directory: Path) -> Iterator[None]:
-    """Hold an exclusive lock on the cache entry ``directory`` (blocking) while the block runs; no lock where the
-    cache cannot be written or the platform has no ``fcntl``."""
+    """Hold an exclusive lock on the cache entry ``directory`` (blocking) while the block runs. No lock where the
+    cache's folder does not exist yet (nothing is made before the solve, so a solve cut short by a signal leaves
+    nothing behind), cannot be written, or the platform has no ``fcntl``."""
+    lock = directory.parent / f".{directory.name}.lock"
     try:
         import fcntl
 
-        directory.parent.mkdir(parents=True, exist_ok=True)
-        handle = os.open(directory.parent / f".{directory.name}.lock", os.O_RDWR | os.O_CREAT, 0o666)
+        handle = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666) if directory.parent.is_dir() else None
     except (ImportError, OSError):
+        handle = None
+    if handle is None:
         yield
         return
     try:
