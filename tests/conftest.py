@@ -25,6 +25,9 @@ def _private_caches(tmp_path_factory: pytest.TempPathFactory) -> None:
             shared = shared.parent
         os.environ["HEARTPOLE_CACHE_DIR"] = str(shared / "heartpole-cache")
         (shared / "heartpole-cache").mkdir(exist_ok=True)
+    # The optimum's solve lock is taken where its folder exists: with it made now, two workers wanting one
+    # solution (v0's, at the start) solve it once
+    (Path(os.environ["HEARTPOLE_CACHE_DIR"]) / "optimum").mkdir(parents=True, exist_ok=True)
     if "HEARTPOLE_JAX_CACHE" not in os.environ:
         os.environ["HEARTPOLE_JAX_CACHE"] = str(tmp_path_factory.mktemp("heartpole-jax-cache"))
 
