@@ -315,10 +315,14 @@ def load_preset(path: str | os.PathLike[str]) -> TrainConfig:
         OSError: the file cannot be read.
     """
     try:
-        data = json.loads(Path(path).read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"preset file {path} is not JSON: {error}") from None
-    if not isinstance(data, dict) or data.get("format") != PRESET_FORMAT or not isinstance(data.get("config"), dict):
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ValueError(f"preset file {path} is not JSON text: {error}") from None
+    found = data.get("format") if isinstance(data, dict) else None
+    if isinstance(found, str) and found.startswith("heartpole-preset/") and found != PRESET_FORMAT:
+        raise ValueError(f"preset file {path} has format {found!r}, made by another version of HeartPole; this one "
+                         f"reads {PRESET_FORMAT!r}")  # fmt: skip
+    if not isinstance(data, dict) or found != PRESET_FORMAT or not isinstance(data.get("config"), dict):
         raise ValueError(f"{path} is not a preset file (expected a JSON object with format {PRESET_FORMAT!r})")
     check_heartpole_id(data["config"].get("env_id", TrainConfig.env_id), f"preset file {path}")
     try:
