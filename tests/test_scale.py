@@ -73,6 +73,8 @@ def test_import_heartpole_and_the_cli_parser_never_import_ray() -> None:
         (["tune", "--trials", "0"], "--trials must be a whole number >= 1, got 0"),
         (["tune", "--trials", "many"], "--trials must be a whole number >= 1, got 'many'"),
         (["tune", "--seeds-per-trial", "0"], "--seeds-per-trial must be a whole number >= 1"),
+        # 10**8 seeds a trial: minutes building the list, and SIGTERM then ended it with status 15, not 143
+        (["tune", "--seeds-per-trial", "100000000"], "--seeds-per-trial must be at most 100"),
         (["tune", "--timesteps", "1", "--n-envs", "4"], "--timesteps (1) must be at least --n-envs (4)"),
         (["tune", "--env", "CartPole-v1"], "not a HeartPole env"),
         (["tune", "--resume"], "--resume: no search to continue in"),

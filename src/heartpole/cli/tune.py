@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from heartpole import files, paths
 from heartpole.cli.common import CommandError, Subparsers, format_table, heartpole_env, not_empty, one_line_error
 from heartpole.cli.train import (
+    MAX_SEEDS,
     RAY_EXTRA,
     check_cpus_per_trial,
     format_cpu,
@@ -99,6 +100,9 @@ def build_settings(args: argparse.Namespace) -> SearchSettings:
         raise CommandError(f"unknown algorithm {args.algo!r} for a search; choose one of {', '.join(SEARCHABLE)}")
     trials = whole_number("--trials", args.trials, 1)
     per_trial = whole_number("--seeds-per-trial", args.seeds_per_trial, 1)
+    if per_trial is not None and per_trial > MAX_SEEDS["sb3"]:  # a trial trains its seeds as `train --seeds` does
+        raise CommandError(f"--seeds-per-trial must be at most {MAX_SEEDS['sb3']} (the seeds one trial trains with "
+                           f"Stable-Baselines3, as train --seeds), got {per_trial:,}")  # fmt: skip
     overrides: dict[str, Any] = {"env_id": heartpole_env(args.env)}
     for name, key in (("--timesteps", "timesteps"), ("--n-envs", "n_envs")):
         value = whole_number(name, getattr(args, key), 1)
