@@ -310,3 +310,13 @@ def test_a_single_envs_info_traits_are_its_own() -> None:
     second = env.step(0)[-1]
     assert second["traits"].tobytes() == reset_info["traits"].tobytes() != first["traits"].tobytes()
     assert second["person"] == reset_info["person"] == first["person"]
+
+
+def test_a_measurement_given_as_its_json_description_is_the_measurement() -> None:
+    # what a preset's env_kwargs or --env-kwargs hold, as `heartpole dataset --measurement` and datasets take it
+    described = {"noise": {"alertness": 0.2}, "every": 4}
+    a = HeartPoleVectorEnv(3, measurement=described)
+    b = HeartPoleVectorEnv(3, measurement=Measurement({"alertness": 0.2}, every=4))
+    np.testing.assert_array_equal(a.reset(seed=1)[0], b.reset(seed=1)[0])
+    for _ in range(6):
+        np.testing.assert_array_equal(a.step(np.ones(3, np.int64))[0], b.step(np.ones(3, np.int64))[0])

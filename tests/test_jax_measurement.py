@@ -89,7 +89,7 @@ def test_traits_follow_the_age_and_bad_measurements_are_refused() -> None:
     assert obs.shape == (12,) and env.observation_space(params).shape == (12,)
     np.testing.assert_array_equal(obs[7:], env.person_values(state))
     assert state.person_values.shape == (0,)  # a cohort's person is carried as their index alone
-    with pytest.raises(TypeError, match="measurement must be a heartpole.measurement.Measurement or None"):
+    with pytest.raises(TypeError, match="measurement must be a heartpole.measurement.Measurement, its JSON"):
         make("HeartPole-v0", measurement={"alertness": 0.1})
     with pytest.raises(ValueError, match=r"unknown variables \['thc'\]"):
         make("HeartPole-v0", measurement=Measurement({"thc": 0.1}))

@@ -81,6 +81,25 @@ class Measurement:
         """JSON-safe description (for reports and datasets' metadata)."""
         return {"noise": dict(self.noise), "every": self.every}
 
+    @classmethod
+    def resolve(cls, value: object) -> Measurement | None:
+        """An env's ``measurement`` keyword: ``None``, a ``Measurement``, or its JSON description
+        (``{"noise": {"alertness": 0.2}, "every": 4}``, as [`to_dict`][heartpole.measurement.Measurement.to_dict]
+        writes it and a preset's or ``--env-kwargs``' JSON holds it).
+
+        Raises:
+            TypeError: anything else, or a description with other keys.
+            ValueError: a description's bad values (see the class).
+        """
+        if value is None or isinstance(value, Measurement):
+            return value
+        if not isinstance(value, Mapping) or "noise" not in value or set(value) - {"noise", "every"}:
+            raise TypeError(
+                "measurement must be a heartpole.measurement.Measurement, its JSON description such as "
+                f'{{"noise": {{"alertness": 0.2}}, "every": 4}}, or None; got {value!r}'
+            )
+        return cls(**value)
+
 
 @dataclass(frozen=True, eq=False)
 class Sensor:

@@ -42,9 +42,7 @@ class Observer:
     def __init__(self, dynamics: Dynamics, people: Any, observe_traits: Any, measurement: Any) -> None:
         self.people = People.resolve(people)
         self.observe_traits = check_observe_traits(observe_traits, self.people)
-        if measurement is not None and not isinstance(measurement, Measurement):
-            raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
-        self.measurement = measurement
+        self.measurement = measurement = Measurement.resolve(measurement)
         self.sensor: Sensor | None = None if measurement is None else measurement.sensor(dynamics.names)
         self.plain = self.sensor is None and not self.observe_traits
         """Whether the observation is the state itself."""

@@ -169,9 +169,7 @@ class HeartPoleJax:
         self.people = People.resolve(people)
         self.observe_traits = check_observe_traits(observe_traits, self.people)
         self.population = None if self.people is None else Population(self.people, self.dynamics)
-        if measurement is not None and not isinstance(measurement, Measurement):
-            raise TypeError(f"measurement must be a heartpole.measurement.Measurement or None, got {measurement!r}")
-        self.measurement = measurement
+        self.measurement = measurement = Measurement.resolve(measurement)
         self.sensor = None if measurement is None else measurement.sensor(self.dynamics.names)
         self.num_variables = len(self.dynamics.variables)
         self._num_actions = len(self.dynamics.actions)

@@ -186,7 +186,7 @@ def _objects(kwargs: Mapping[str, Any]) -> dict[str, Any]:
     if isinstance(out.get("people"), Mapping):
         out["people"] = people_from_dict(out["people"])
     if isinstance(out.get("measurement"), Mapping):
-        out["measurement"] = Measurement(**out["measurement"])
+        out["measurement"] = Measurement.resolve(out["measurement"])
     return out
 
 
