@@ -52,13 +52,14 @@ def test_a_network_larger_than_the_memory_is_refused_before_it_is_built(capsys, 
 
 
 def test_network_memory_is_counted_against_half_the_memory(monkeypatch) -> None:
+    from heartpole import paths
     from heartpole.training import checks
 
     needed = checks.check_network_memory((64, 64), 6, 4)
     assert needed == (6 * 64 + 64 + 64 * 64 + 64 + 64 * 5 + 5) * checks.NETWORK_BYTES_PER_PARAMETER
-    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed)
+    monkeypatch.setattr(paths, "physical_memory", lambda: 2 * needed)
     checks.check_network_memory((64, 64), 6, 4)
-    monkeypatch.setattr(checks, "physical_memory", lambda: 2 * needed - 1)
+    monkeypatch.setattr(paths, "physical_memory", lambda: 2 * needed - 1)
     with pytest.raises(ValueError, match=r"net_arch \[64, 64\] has 4,933 parameters per network"):
         checks.check_network_memory((64, 64), 6, 4)
 

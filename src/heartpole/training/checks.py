@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from heartpole.parameters import is_number
-from heartpole.paths import check_memory, physical_memory
+from heartpole.paths import check_memory
 from heartpole.rollout import ENV_BYTES
 
 
@@ -278,13 +278,7 @@ def check_network_memory(net_arch: Sequence[int], inputs: int, actions: int) -> 
     sizes = [inputs, *net_arch, actions + 1]  # +1: the critic's value beside the actor's logits, generously
     parameters = sum(a * b + b for a, b in zip(sizes, sizes[1:]))
     needed = parameters * NETWORK_BYTES_PER_PARAMETER
-    memory = physical_memory()
-    if memory is not None and needed > memory // 2:
-        raise ValueError(
-            f"net_arch {list(net_arch)} has {parameters:,} parameters per network, which training needs about "
-            f"{needed / 2**30:,.1f} GiB for; this machine has {memory / 2**30:,.1f} GiB of memory (at most half "
-            "of it may go to the networks)"
-        )
+    check_memory(needed, f"net_arch {list(net_arch)} has {parameters:,} parameters per network; training them")
     return needed
 
 
