@@ -64,3 +64,29 @@ def test_cli_history_reports_the_bounds(capsys) -> None:
     history = json.loads(capsys.readouterr().out)["history"]
     assert history["bound above"] >= history["expected return, its policy"]
     assert 0 < history["over the sleep-timing optimum"] < 1e-4
+
+
+def test_the_hull_finds_the_best_of_every_line() -> None:
+    """`_hulls` and `_line_envelope`'s binary search find the best of every lower line at any work, inside the grid
+    and past its ends, with lines of equal slope among them (the unsolved rows' -1e9 lines are all alike)."""
+    from heartpole.optimum.whole import _hulls, _line_envelope
+
+    rng = np.random.default_rng(7)
+    steps, width, points = 40, 3, 9
+    offsets = np.linspace(-6.0, 6.0, points)
+    work_centre = rng.normal(size=(steps, width))
+    work_scale = rng.uniform(0.2, 2.0, size=(steps, width))
+    lines = rng.normal(size=(steps, width, points))
+    slopes = rng.choice([-1.0, 0.0, 0.5, 1.0, 2.0], size=(steps, width, points))  # equal slopes are common
+    lines[0, 1], slopes[0, 1] = -1e9, 0.0
+    hull, breaks = _hulls(work_centre, work_scale, offsets, lines, slopes)
+    centre = np.full(steps, 2)  # band 1: ``sleeps`` so far is row sleeps + 1 - 2 + 1, the same number
+    for after in range(steps):
+        for b in range(width):
+            x_i = work_centre[after, b] + work_scale[after, b] * offsets
+            for x in np.linspace(x_i[0] - 10.0, x_i[-1] + 10.0, 101):
+                best = (lines[after, b] + slopes[after, b] * (x - x_i)).max()
+                found = _line_envelope(
+                    x, after, b, centre, 1, work_centre, work_scale, offsets, lines, slopes, hull, breaks
+                )
+                assert found == pytest.approx(best, abs=1e-12), (after, b, x)

@@ -17,8 +17,8 @@ envelope of lines, convex in ``W``, and the program keeps, on a grid of ``W`` fo
 * an **upper value**: chords of a convex function lie above it, so interpolating upper values linearly gives upper
   values between the grid's points (outside the grid the edge chord is extended: an approximation, see below);
 * a **lower line**: the value and slope of one concrete plan, exact at every ``W`` (a plan's value is affine). The
-  policy that at each decision takes the best of these lines (`HistoryOptimum.sleeps`) earns at least
-  every line's value, so ``lower`` is the value of a policy one can play.
+  policy that at each decision takes the best of these lines (`HistoryOptimum.sleeps`, by their upper envelope) earns
+  at least every line's value, so ``lower`` is the value of a policy one can play.
 
 Both are exact on the waking-alertness grid (a midpoint rule over ``grid`` points, as the sleep-timing program's).
 What they assume: the sleeps so far stay within ``band`` of their typical count and the work within ``spread``
@@ -127,6 +127,11 @@ class HistoryOptimum:
         not at every decision."""
         return max_awake(self.params), _DayModel(self.params, 1).drained
 
+    @functools.cached_property
+    def _hull(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each day start's upper envelope of its lower lines, so play finds the best line by a binary search."""
+        return _hulls(self.work_centre, self.work_scale, self.offsets, self.line_values, self.line_slopes)
+
     def _tables(self) -> tuple[Any, ...]:
         return (
             self.centre,
@@ -136,6 +141,7 @@ class HistoryOptimum:
             self.offsets,
             self.line_values,
             self.line_slopes,
+            *self._hull,
         )
 
 
@@ -434,12 +440,14 @@ def _greedy(
     offsets: Any,
     lines: Any,
     slopes: Any,
+    hull: Any,
+    breaks: Any,
 ) -> Any:
     """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
     end), by the upper envelope of the lower lines. Env ``e`` woke at alertness ``w[e]`` (``drained`` since), has
     ``work[e]`` done; its work after ``j`` more half-hours adds the productivity of each."""
     decide = np.zeros(len(t), dtype=np.bool_)
-    tables = (centre, band, work_centre, work_scale, offsets, lines, slopes)
+    tables = (centre, band, work_centre, work_scale, offsets, lines, slopes, hull, breaks)
     for e in range(len(t)):
         if t[e] >= awake - 1:
             decide[e] = True
@@ -474,14 +482,54 @@ def _line_envelope(
     offsets: Any,
     lines: Any,
     slopes: Any,
+    hull: Any,
+    breaks: Any,
 ) -> float:
     """The best lower line at the day start ``after`` decisions left with ``x`` work done (``-inf`` outside the band
-    of sleeps so far; ``sleeps < 0``: the centre's)."""
+    of sleeps so far; ``sleeps < 0``: the centre's): the hull's line whose stretch holds ``x`` (`_hulls`)."""
     b = band if sleeps < 0 else sleeps + 1 - centre[after] + band
     if b < 0 or b > 2 * band:
         return -np.inf
-    value = -np.inf
-    for i in range(len(offsets)):
-        x_i = work_centre[after, b] + work_scale[after, b] * offsets[i]
-        value = max(value, lines[after, b, i] + slopes[after, b, i] * (x - x_i))
-    return value
+    low, high = 0, len(offsets) - 1  # breaks past the hull's last line are +inf
+    while low < high:
+        middle = (low + high) // 2
+        if breaks[after, b, middle] <= x:
+            low = middle + 1
+        else:
+            high = middle
+    i = hull[after, b, low]
+    return lines[after, b, i] + slopes[after, b, i] * (x - (work_centre[after, b] + work_scale[after, b] * offsets[i]))
+
+
+@njit(cache=CACHE)
+def _hulls(work_centre: Any, work_scale: Any, offsets: Any, lines: Any, slopes: Any) -> Any:
+    """The upper envelope of each day start's lines ``lines[m, b, i] + slopes[m, b, i] * (x - x_i)``: ``hull[m, b]``
+    lists the lines that are the best somewhere, left to right, and ``breaks[m, b, k]`` is where line ``k + 1`` of the
+    list overtakes line ``k`` (``+inf`` after the last). The convex hull trick: lines by increasing slope, each one
+    dropping those it and the one before cover."""
+    steps, width, points = lines.shape
+    hull = np.zeros((steps, width, points), dtype=np.int64)
+    breaks = np.full((steps, width, points), np.inf)
+    cross = np.empty(points)
+    for m in range(steps):
+        for b in range(width):
+            slope = slopes[m, b]
+            at_zero = lines[m, b] - slope * (work_centre[m, b] + work_scale[m, b] * offsets)
+            top = -1
+            for i in np.argsort(slope, kind="mergesort"):
+                if top >= 0 and slope[hull[m, b, top]] == slope[i]:
+                    if at_zero[hull[m, b, top]] >= at_zero[i]:
+                        continue
+                    top -= 1
+                while top >= 0:
+                    j = hull[m, b, top]
+                    x = (at_zero[j] - at_zero[i]) / (slope[i] - slope[j])
+                    if top >= 1 and x <= cross[top - 1]:
+                        top -= 1
+                        continue
+                    cross[top] = x
+                    break
+                top += 1
+                hull[m, b, top] = i
+            breaks[m, b, :top] = cross[:top]
+    return hull, breaks
