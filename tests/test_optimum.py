@@ -438,6 +438,7 @@ def test_the_drinking_grid_agrees_with_the_env_on_a_fixed_rule() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.audit  # 1,000 value-iteration sweeps: about 3 minutes
 def test_no_policy_reaches_issue_16s_drinking_score_on_the_grid() -> None:
     """The whole episode's optimum (end-game included) on the grid: E[work - 1.1235 time] < 0 for every policy."""
     from heartpole.optimum import solve_drinking

@@ -114,6 +114,7 @@ def test_the_frontier_point_refuses_params_with_keywords() -> None:
 
 
 @pytest.mark.slow  # the lifetime check at 1,000 decisions (about a minute) and 2,000 episodes through the evaluator
+@pytest.mark.audit  # shorter horizons' lifetime checks run in every suite (max_steps 100's solves)
 def test_at_penalty_30_no_drink_pays_and_the_evaluator_confirms(capsys) -> None:
     """The own-step floor cannot rule drinks out at penalty 30 (it did refuse), the lifetime check does: the optimum
     is the no-drink one, and the evaluator's 95% interval for `optimal` holds its value."""

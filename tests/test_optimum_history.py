@@ -32,7 +32,11 @@ GUS_300 = {
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_kwargs", [{}, KAI, GUS_300, CLEO_400], ids=["v0", "Kai", "Gus-300", "Cleo-400"])
+@pytest.mark.parametrize(
+    "env_kwargs",
+    [{}, pytest.param(KAI, marks=pytest.mark.audit), GUS_300, CLEO_400],  # v0 stands for 1,000 decisions in CI
+    ids=["v0", "Kai", "Gus-300", "Cleo-400"],
+)
 def test_the_history_rule_gains_nothing_beyond_the_margin_over_optimal(env_kwargs: dict[str, object]) -> None:
     """The history-aware rule against ``optimal`` (the history-aware optimum) on 40,000 paired episodes: its gain is
     not significantly above the margin, at 1,000 decisions and at the short horizons where the history is worth most
