@@ -87,6 +87,6 @@ def test_the_hull_finds_the_best_of_every_line() -> None:
             for x in np.linspace(x_i[0] - 10.0, x_i[-1] + 10.0, 101):
                 best = (lines[after, b] + slopes[after, b] * (x - x_i)).max()
                 found = _line_envelope(
-                    x, after, b, centre, 1, work_centre, work_scale, offsets, lines, slopes, hull, breaks
+                    x, after, b, (centre, 1, work_centre, work_scale, offsets, lines, slopes, hull, breaks)
                 )
                 assert found == pytest.approx(best, abs=1e-12), (after, b, x)

@@ -95,7 +95,7 @@ class HistoryOptimum:
         sleeps = self._sleeps_so_far(obs, n)
         w = obs[:, 0] + drained[t]
         day = (w, obs[:, 5], drained, float(ballmer(0.0)), awake)
-        return _greedy(*day, t, n, sleeps, params.max_steps, params.sleep_half_hours, *self._tables())
+        return _greedy(*day, t, n, sleeps, params.max_steps, params.sleep_half_hours, self._tables())
 
     def inside(self, obs: np.ndarray, decisions_left: np.ndarray) -> np.ndarray:
         """Whether each observation lies in the solved region: at the day start a sleep now would begin, its sleeps so
@@ -433,21 +433,13 @@ def _greedy(
     sleeps: Any,
     steps: Any,
     rest: Any,
-    centre: Any,
-    band: Any,
-    work_centre: Any,
-    work_scale: Any,
-    offsets: Any,
-    lines: Any,
-    slopes: Any,
-    hull: Any,
-    breaks: Any,
+    tables: Any,
 ) -> Any:
     """Sleep where sleeping now is worth at least as much as the best later sleep of the same day (or working to the
     end), by the upper envelope of the lower lines. Env ``e`` woke at alertness ``w[e]`` (``drained`` since), has
-    ``work[e]`` done; its work after ``j`` more half-hours adds the productivity of each."""
+    ``work[e]`` done; its work after ``j`` more half-hours adds the productivity of each. ``tables``: those of
+    `_line_envelope`."""
     decide = np.zeros(len(t), dtype=np.bool_)
-    tables = (centre, band, work_centre, work_scale, offsets, lines, slopes, hull, breaks)
     for e in range(len(t)):
         if t[e] >= awake - 1:
             decide[e] = True
@@ -459,34 +451,23 @@ def _greedy(
                 total += _sober_work(w[e] - drained[t[e] + j], sober)
             best_later = total / (steps + rest * sleeps[e])
         later = work[e]
-        now = _line_envelope(later, n[e] - 1, sleeps[e], *tables)
+        now = _line_envelope(later, n[e] - 1, sleeps[e], tables)
         decide[e] = now >= best_later
         # a later sleep that beats sleeping now settles it (the first one found: most decisions are "work on")
         for j in range(1, min(n[e] - 1, awake - 1 - t[e]) + 1):
             if not decide[e]:
                 break
             later += _sober_work(w[e] - drained[t[e] + j - 1], sober)
-            decide[e] = now >= _line_envelope(later, n[e] - j - 1, sleeps[e], *tables)
+            decide[e] = now >= _line_envelope(later, n[e] - j - 1, sleeps[e], tables)
     return decide
 
 
 @njit(cache=CACHE)
-def _line_envelope(
-    x: float,
-    after: int,
-    sleeps: int,
-    centre: Any,
-    band: int,
-    work_centre: Any,
-    work_scale: Any,
-    offsets: Any,
-    lines: Any,
-    slopes: Any,
-    hull: Any,
-    breaks: Any,
-) -> float:
+def _line_envelope(x: float, after: int, sleeps: int, tables: Any) -> float:
     """The best lower line at the day start ``after`` decisions left with ``x`` work done (``-inf`` outside the band
-    of sleeps so far; ``sleeps < 0``: the centre's): the hull's line whose stretch holds ``x`` (`_hulls`)."""
+    of sleeps so far; ``sleeps < 0``: the centre's): the hull's line whose stretch holds ``x`` (`_hulls`). ``tables``
+    is `HistoryOptimum._tables`' ``(centre, band, work_centre, work_scale, offsets, lines, slopes, hull, breaks)``."""
+    centre, band, work_centre, work_scale, offsets, lines, slopes, hull, breaks = tables
     b = band if sleeps < 0 else sleeps + 1 - centre[after] + band
     if b < 0 or b > 2 * band:
         return -np.inf
