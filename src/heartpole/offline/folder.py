@@ -80,7 +80,10 @@ def _file_size_limit() -> int | None:
 
 
 def _size(count: int) -> str:
-    return f"{count / 2**20:.1f} MiB" if count >= 2**20 else f"{count / 1024:.0f} KiB"
+    for unit, power in (("TiB", 40), ("GiB", 30), ("MiB", 20)):
+        if count >= 2**power:
+            return f"{count / 2**power:,.1f} {unit}"
+    return f"{count / 1024:.0f} KiB"
 
 
 def write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:

@@ -16,9 +16,14 @@ import numpy as np
 from heartpole.plots.canvas import VIDEO_SUFFIXES
 from heartpole.plots.episode import act
 from heartpole.policies import Policy, quiet_version_warnings
+from heartpole.render import BASE_HEIGHT, WIDTH
 
 if TYPE_CHECKING:
     from heartpole.env import HeartPole
+
+GIF_FRAME_BYTES = WIDTH * BASE_HEIGHT
+"""The least memory a GIF's frame takes until the GIF is written: Pillow keeps every frame, as one byte a pixel,
+until it has seen the last (a variant's extra gauges make frames taller)."""
 
 
 def episode_frames(
