@@ -464,8 +464,7 @@ def load_local(target_id: str) -> MinariDataset:
         raise ValueError(f"unknown dataset id {target_id!r} in {_root()}; local datasets: {listing}")
     check_dataset_env(metadata)
     for stored in metadata.parent.iterdir():
-        if not stored.is_file():  # a FIFO or a device would block the HDF5 reader or feed it forever
-            raise ValueError(f"dataset {target_id!r}: {stored} is not a regular file")
+        folder.check_stored(target_id, stored)
     try:
         with quiet_version_warnings():
             return minari.load_dataset(target_id)
