@@ -35,6 +35,7 @@ from heartpole.policies.common import (
     VECNORMALIZE_JSON_NAME,
     VECNORMALIZE_NAME,
     Predictor,
+    check_model_format,
     default_dynamics,
     observation_batch,
 )
@@ -351,6 +352,7 @@ def _sidecar_record(path: Path) -> dict[str, Any] | None:
         record = json.loads(sidecar.read_text())
     except (OSError, ValueError):
         return None  # detect_algorithm reports an unreadable sidecar
+    check_model_format(sidecar, record)
     if not isinstance(record, dict) or "vecnormalize" not in record:
         return None
     if record.get("model", path.name) != path.name:
@@ -386,8 +388,13 @@ def detect_algorithm(path: str | Path) -> str:
 
 def _algorithm_from_sidecar(sidecar: Path) -> str:
     try:
-        algo = json.loads(sidecar.read_text())["algo"]
-    except (OSError, ValueError, KeyError, TypeError) as error:
+        record = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({one_line(error)})') from None
+    check_model_format(sidecar, record)
+    try:
+        algo = record["algo"]
+    except (KeyError, TypeError) as error:
         raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({one_line(error)})') from None
     if not isinstance(algo, str) or algo.lower() not in SB3_ALGORITHMS:
         raise ValueError(f"{sidecar}: unsupported algo {algo!r}; supported: {', '.join(SB3_ALGORITHMS)}")
