@@ -82,3 +82,20 @@ def test_the_baselines_are_the_built_in_policies_evaluated_on_the_players_episod
     nothing = rows[names.index("nothing")]
     again = evaluate("nothing", "HeartPole-v0", 20, 3, env_kwargs={"max_steps": 5})
     assert nothing.expected_return == again.expected_return and nothing.ci95 == again.ci95
+
+
+def test_a_game_longer_than_the_registered_limit_is_not_cut_short() -> None:
+    """gymnasium.make kept its TimeLimit at the spec's 1,000 decisions: ``play --steps 1500`` ended at 1,000."""
+    import gymnasium as gym
+
+    game = new_game("HeartPole-v0", steps=1500, seed=0)
+    limits = [e._max_episode_steps for e in _wrappers(game.env) if isinstance(e, gym.wrappers.TimeLimit)]
+    assert limits == [1500] and game.env.unwrapped.max_steps == 1500
+
+
+def _wrappers(env: object) -> list[object]:
+    found = []
+    while env is not None:
+        found.append(env)
+        env = getattr(env, "env", None)
+    return found

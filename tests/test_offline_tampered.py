@@ -79,3 +79,16 @@ def test_a_dataset_file_that_is_not_a_regular_file_is_refused_without_waiting(re
     os.mkfifo(recorded)  # the HDF5 reader blocked on it forever
     assert main(["ope", "--dataset", DATASET, "--policy", "expert", "--truth-episodes", "2"]) == 2
     assert f"{recorded} is not a regular file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("content", "said"),
+    [(b"", "is not an HDF5 file (it is empty)"), (b"not an HDF5 file at all\n", "is not an HDF5 file;")],
+    ids=["empty", "not-hdf5"],
+)
+def test_a_dataset_file_that_is_not_hdf5_is_named(recorded: Path, capsys, content: bytes, said: str) -> None:
+    recorded.write_bytes(content)  # h5py's "file signature not found" named no file
+    assert main(["ope", "--dataset", DATASET, "--policy", "expert", "--truth-episodes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert f"dataset '{DATASET}': {recorded} {said}" in err

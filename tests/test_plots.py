@@ -223,3 +223,15 @@ def test_video_writers_are_checked_by_type(monkeypatch: pytest.MonkeyPatch) -> N
     monkeypatch.setattr(builtins, "__import__", without_pil)
     with pytest.raises(ImportError, match=r"^\.gif videos need Pillow$"):
         plots.require_video_writer(".gif")
+
+
+def test_an_episode_longer_than_the_registered_limit_is_drawn_and_filmed_whole() -> None:
+    """``max_steps`` above the spec's ``max_episode_steps``: gymnasium.make's TimeLimit stopped the episode at the
+    registered length (``heartpole record --steps 2000`` filmed 1,000 decisions)."""
+    from heartpole.plots import episode_frames, trace_episode
+    from heartpole.policies import load_policy
+
+    heartpole.register_variant("ShortPlotPole-v0", max_steps=5, replace=True)
+    policy = load_policy("nothing", "ShortPlotPole-v0", env_kwargs={"max_steps": 9})
+    assert len(trace_episode(policy, "ShortPlotPole-v0", 0, max_steps=9).actions) == 9
+    assert sum(1 for _ in episode_frames(policy, "ShortPlotPole-v0", 0, max_steps=9)) == 10

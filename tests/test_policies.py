@@ -170,6 +170,21 @@ def test_missing_and_corrupt_files_are_clear(tmp_path: Path) -> None:
         load_policy(str(no_data))
 
 
+def test_a_named_pipe_given_as_a_model_is_not_a_regular_file(tmp_path: Path, capsys) -> None:
+    import os
+    import re
+
+    from heartpole.cli import main
+
+    pipe = tmp_path / "model.zip"
+    os.mkfifo(pipe)  # said "model file not found"; opening it would wait for a writer forever
+    with pytest.raises(ValueError, match=re.escape(f"{pipe} is not a regular file")):
+        load_policy(str(pipe))
+    assert main(["evaluate", "--policy", str(pipe), "--episodes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and f"{pipe} is not a regular file (a named pipe" in err, err
+
+
 def test_sidecar_names_the_algorithm(tmp_path: Path) -> None:
     model = tmp_path / "model.zip"
     model.write_bytes(b"")

@@ -45,7 +45,7 @@ DAMAGED = {
     "another version": (json.dumps({**_settings(), "format": "heartpole-search/2"}), "resumes 'heartpole-search/1'"),
     "a key missing": (json.dumps({k: v for k, v in _settings().items() if k != "seeds"}), "keys"),
     "an unknown key": (json.dumps({**_settings(), "grid": 1}), "keys"),
-    "bad trials": (json.dumps({**_settings(), "trials": "3"}), "trials must be an integer >= 1"),
+    "bad trials": (json.dumps({**_settings(), "trials": "3"}), "trials must be an integer in [1, 10,000]"),
     "bad seeds": (json.dumps({**_settings(), "seeds": 7}), "seeds must be a list"),
     "bad base": (json.dumps({**_settings(), "base": {"algo": "sac"}}), "base: unknown algorithm"),
     "binary": ("\udcff", ""),

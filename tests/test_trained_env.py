@@ -127,3 +127,30 @@ def test_bad_env_kwargs_are_one_line(capsys) -> None:
     assert exit_.value.code == 2 and "not a JSON object" in capsys.readouterr().err
     code, _, err = _run(capsys, "evaluate", "--policy", "expert", "--env-kwargs", "nope=1")
     assert code == 2 and "unexpected keyword argument 'nope'" in err and len(err.strip().splitlines()) == 1
+
+
+def _copy_with_format(run: Path, where: Path, fmt: str | None) -> Path:
+    """``run``'s folder copied to ``where``, its record's ``format`` set to ``fmt`` (removed: None)."""
+    import shutil
+
+    shutil.copytree(run, where)
+    record = json.loads((run / "heartpole.json").read_text())
+    record.pop("format")
+    (where / "heartpole.json").write_text(json.dumps(record if fmt is None else {**record, "format": fmt}))
+    return where / "model.zip"
+
+
+def test_a_model_folder_records_its_format_and_another_version_is_refused(run: Path, tmp_path: Path, capsys) -> None:
+    from heartpole.policies import MODEL_FORMAT, load_policy
+
+    assert json.loads((run / "heartpole.json").read_text())["format"] == MODEL_FORMAT == "heartpole-model/1"
+    later = _copy_with_format(run, tmp_path / "later", "heartpole-model/99")
+    code, _, err = _run(capsys, "evaluate", "--policy", str(later), "--episodes", "2")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{later.parent / 'heartpole.json'}: format 'heartpole-model/99', and this HeartPole reads " in err
+    assert "'heartpole-model/1' only" in err
+    with pytest.raises(ValueError, match="format 'heartpole-model/99'"):
+        load_policy(str(later), "HeartPole-v0", env_kwargs=TRAINED_ON)
+    older = _copy_with_format(run, tmp_path / "older", None)  # written before the field existed: version 1
+    assert trained_env(str(older)) is not None
+    load_policy(str(older), "HeartPole-v0", env_kwargs=TRAINED_ON)

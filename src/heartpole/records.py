@@ -22,7 +22,7 @@ import gymnasium as gym
 import numpy as np
 
 from heartpole import files, solved
-from heartpole.policies import CURVE_COLUMNS, MODEL_NAME, SIDECAR_NAME, load_policy
+from heartpole.policies import CURVE_COLUMNS, MODEL_FORMAT, MODEL_NAME, SIDECAR_NAME, load_policy
 from heartpole.registry import env_dynamics, solved_bar
 from heartpole.stats import bootstrap_interval, fixed, interquartile_mean
 
@@ -124,11 +124,12 @@ def write_curve(path: Path, rows: Sequence[Mapping[str, float]]) -> None:
 
 
 def run_description(config: Any) -> dict[str, Any]:
-    """What every backend's ``heartpole.json`` says first: the run's algorithm, env (id and keyword arguments:
-    what ``heartpole evaluate`` and the other commands play the model on, see
+    """What every backend's ``heartpole.json`` says first: its format, the run's algorithm, env (id and keyword
+    arguments: what ``heartpole evaluate`` and the other commands play the model on, see
     [`heartpole.policies.trained_env`][heartpole.policies.trained_env]), seed, steps, preset, policy class and
     whole configuration."""
     return {
+        "format": MODEL_FORMAT,
         "algo": config.algo,
         "env_id": config.env_id,
         "env_kwargs": dict(config.env_kwargs),

@@ -158,6 +158,7 @@ def run_dataset(args: argparse.Namespace) -> int:
     if args.standard and env_kwargs:
         raise CommandError("--env-kwargs records one dataset: give --policy P, not --standard")
     max_steps = _library(lambda: _max_steps(args.env, env_kwargs))
+    _check_room(args, env_kwargs)
     if args.standard:
         total = len(datasets.STANDARD_DATASETS) * args.episodes * max_steps
         with progress(total, "recording the standard datasets") as bar:
@@ -330,6 +331,14 @@ def _offline(module: str) -> ModuleType:
     except ImportError:
         raise CommandError("Minari is not installed; install it with: pip install 'heartpole[offline]'") from None
     return importlib.import_module(f"heartpole.offline.{module}")
+
+
+def _check_room(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> None:
+    """Refuse ``--episodes`` whose dataset(s) would not fit in Minari's folder, before anything is recorded."""
+    datasets = _offline("datasets")
+    count = len(datasets.STANDARD_DATASETS) if args.standard else 1
+    what = f"--episodes {args.episodes:,}" + (f" for each of the {count} standard datasets" if args.standard else "")
+    _library(lambda: datasets.check_dataset_room(args.episodes, args.env, env_kwargs, what, count))
 
 
 def _max_steps(env_id: str, env_kwargs: dict[str, Any] | None = None) -> int:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from heartpole import files, plots
+from heartpole import files, paths, plots
 from heartpole.cli.common import (
     CommandError,
     Subparsers,
@@ -39,6 +39,13 @@ if TYPE_CHECKING:
 ORDER = 30
 
 INSTALL_HINT = 'install the plot extra: pip install "heartpole[plot]"'
+
+DEFAULT_FPS = 8
+"""``record``'s frames (half-hour decisions) per second."""
+MAX_DRAWN_STEPS = 100_000
+"""The longest episode ``plot episode`` draws and ``record`` films: 100,000 half-hour decisions are 5.7 years of
+the game, a video of 3.5 hours at the default fps and a dashboard of 100,000 markers a panel; longer would run
+for hours and be no picture of it."""
 
 
 def register(subparsers: Subparsers) -> None:
@@ -104,7 +111,8 @@ def _add_record(subparsers: Subparsers) -> None:
         "MP4 needs imageio-ffmpeg, GIF needs Pillow (both come with heartpole[plot]).",
     )
     _add_episode_options(parser)
-    parser.add_argument("--fps", type=positive_int, default=8, help="frames (half-hour decisions) per second (8)")
+    parser.add_argument("--fps", type=positive_int, default=DEFAULT_FPS,
+                        help=f"frames (half-hour decisions) per second ({DEFAULT_FPS})")  # fmt: skip
     parser.add_argument("--out", required=True, metavar="FILE.mp4|FILE.gif", help="the video to write")
     _add_force(parser)
     parser.set_defaults(handler=record)
@@ -123,7 +131,8 @@ def _add_episode_options(parser: argparse.ArgumentParser) -> None:
         "or a model .zip from 'heartpole train'",
     )
     parser.add_argument("--seed", type=seed_int, default=0, help="seed of the episode (0)")
-    parser.add_argument("--steps", type=positive_int, default=None, help="decisions in the episode (the env's, 1000)")
+    parser.add_argument("--steps", type=positive_int, default=None,
+                        help=f"decisions in the episode (the env's, 1000; at most {MAX_DRAWN_STEPS:,})")  # fmt: skip
     add_env_options(parser)
     add_trust_pickles(parser)
 
@@ -139,9 +148,33 @@ def _require_matplotlib() -> None:
 
 def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     """Set ``args.env`` (``--env``, else the env the model's folder records, else HeartPole-v0) and return its
-    keyword arguments, ``--steps`` as ``max_steps``."""
+    keyword arguments, ``--steps`` as ``max_steps``; an episode longer than
+    [`MAX_DRAWN_STEPS`][heartpole.cli.plot.MAX_DRAWN_STEPS] is refused."""
     args.env, kwargs = choose_env(args, [args.policy])
-    return kwargs if args.steps is None else {**kwargs, "max_steps": args.steps}
+    kwargs = kwargs if args.steps is None else {**kwargs, "max_steps": args.steps}
+    steps = _default_steps(args.env, kwargs)
+    if steps > MAX_DRAWN_STEPS:
+        years, hours = MAX_DRAWN_STEPS / (2 * 24 * 365.25), MAX_DRAWN_STEPS / DEFAULT_FPS / 3600
+        raise CommandError(f"{_steps_option(args)} {steps:,}: an episode drawn or recorded has at most "
+                           f"{MAX_DRAWN_STEPS:,} decisions ({years:.1f} years of half-hours, a video of {hours:.1f} "
+                           f"hours at {DEFAULT_FPS} fps)")  # fmt: skip
+    return kwargs
+
+
+def _steps_option(args: argparse.Namespace) -> str:
+    """What set the episode's length: ``--steps``, else the env's ``max_steps`` (``--env-kwargs``, the model's
+    folder)."""
+    return "--steps" if args.steps is not None else "max_steps"
+
+
+def _check_gif_memory(args: argparse.Namespace, kwargs: dict[str, Any]) -> None:
+    """Refuse a GIF whose frames, which Pillow holds until it writes, would not fit in memory."""
+    frames = _default_steps(args.env, kwargs) + 1
+    try:
+        paths.check_memory(frames * plots.GIF_FRAME_BYTES, f"{_steps_option(args)} {frames - 1:,} as a GIF "
+                           f"({frames:,} frames Pillow holds until it writes)")  # fmt: skip
+    except ValueError as error:
+        raise CommandError(f"{error}; record an MP4, which streams its frames") from None
 
 
 def _policy(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> Policy:
@@ -220,6 +253,8 @@ def record(args: argparse.Namespace) -> int:
     target = output_file(args.out, force=args.force, suffixes=list(plots.VIDEO_SUFFIXES))
     _check_video_writer(target.suffix.lower())
     kwargs = _env_kwargs(args)
+    if target.suffix.lower() == ".gif":
+        _check_gif_memory(args, kwargs)
     policy = _policy(args, kwargs)
     frames = plots.episode_frames(policy, args.env, args.seed, **kwargs)
     total = _default_steps(args.env, kwargs) + 1

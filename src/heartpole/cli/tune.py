@@ -92,13 +92,17 @@ def register(subparsers: Subparsers) -> None:
 def build_settings(args: argparse.Namespace) -> SearchSettings:
     """The [`heartpole.scale.SearchSettings`][heartpole.scale.search.SearchSettings] of the arguments; bad values
     raise CommandError."""
-    from heartpole.scale import SearchSettings
+    from heartpole.scale import MAX_TRIALS, SearchSettings
     from heartpole.training import preset_config
 
     algo = args.algo.lower()
     if algo not in SEARCHABLE:
         raise CommandError(f"unknown algorithm {args.algo!r} for a search; choose one of {', '.join(SEARCHABLE)}")
     trials = whole_number("--trials", args.trials, 1)
+    if trials > MAX_TRIALS:
+        raise CommandError(f"--trials {trials:,}: a search runs at most {MAX_TRIALS:,} trials (Optuna's TPE sampler is "
+                           "meant for 100 to 1,000 and slows with every trial; Ray Tune holds them all in memory); "
+                           "run several searches")  # fmt: skip
     per_trial = whole_number("--seeds-per-trial", args.seeds_per_trial, 1)
     if per_trial is not None and per_trial > MAX_SEEDS["sb3"]:  # a trial trains its seeds as `train --seeds` does
         raise CommandError(f"--seeds-per-trial must be at most {MAX_SEEDS['sb3']} (the seeds one trial trains with "

@@ -209,6 +209,7 @@ def _plan(
         raise FileExistsError(
             f"dataset {target_id!r} already exists in {_root()}; pass force=True (--force) to replace it"
         )
+    check_dataset_room(episodes, env_id, env_kwargs, f"dataset {target_id!r} ({episodes:,} episodes)")
     chunk = min(episodes, RECORD_NUM_ENVS if num_envs is None else check_integer("num_envs", num_envs, 1))
     seeds = [chunk_seed(seed, index) for index in range(-(-episodes // chunk))]
     low, high = (
@@ -241,9 +242,8 @@ def _plan(
         "requirements": [f"heartpole>={_version()}"],
     }
 
-    shape = (int(extra["max_steps"]), len(extra["observation_names"]) + 8, len(extra["action_names"]))
+    shape = _shape(extra)
     where = _root()  # the scratch folder Minari writes into while recording is in it, on the same file system
-    folder.check_room(where / target_id, folder.dataset_bytes(episodes, *shape), f"dataset {target_id!r}")
 
     def create() -> None:
         started = time.perf_counter()
@@ -259,6 +259,26 @@ def _plan(
         dataset.storage.update_metadata({**extra, "recording_seconds": round(time.perf_counter() - started, 3)})
 
     return target_id, create
+
+
+def check_dataset_room(
+    episodes: int, env_id: str, env_kwargs: Mapping[str, Any] | None, what: str, datasets: int = 1
+) -> None:
+    """Check, before anything runs, that ``datasets`` datasets of ``episodes`` episodes of ``env_id`` made with
+    ``env_kwargs`` fit in Minari's folder ([`check_room`][heartpole.offline.folder.check_room] of
+    [`dataset_bytes`][heartpole.offline.folder.dataset_bytes]).
+
+    Raises:
+        OSError: one line naming ``what``, the room needed and the room there is.
+    """
+    shape = _shape(recorded_metadata(env_id, env_kwargs or {}))
+    folder.check_room(_root(), datasets * folder.dataset_bytes(episodes, *shape), what)
+
+
+def _shape(metadata: Mapping[str, Any]) -> tuple[int, int, int]:
+    """A dataset's steps per episode, numbers a step's observation may hold (the state's, with room for traits and
+    a measurement's age) and actions, from its metadata."""
+    return int(metadata["max_steps"]), len(metadata["observation_names"]) + 8, len(metadata["action_names"])
 
 
 def record_standard(
@@ -444,8 +464,7 @@ def load_local(target_id: str) -> MinariDataset:
         raise ValueError(f"unknown dataset id {target_id!r} in {_root()}; local datasets: {listing}")
     check_dataset_env(metadata)
     for stored in metadata.parent.iterdir():
-        if not stored.is_file():  # a FIFO or a device would block the HDF5 reader or feed it forever
-            raise ValueError(f"dataset {target_id!r}: {stored} is not a regular file")
+        folder.check_stored(target_id, stored)
     try:
         with quiet_version_warnings():
             return minari.load_dataset(target_id)
@@ -459,6 +478,7 @@ def load_trajectories(target_id: str) -> Trajectories:
     return Trajectories.from_dataset(load_local(target_id))
 
 
-__all__ = ["STANDARD_DATASETS", "DatasetSpec", "behaviour_name", "default_dataset_id", "load_local"]
+__all__ = ["STANDARD_DATASETS", "DatasetSpec", "behaviour_name", "check_dataset_room", "default_dataset_id"]
+__all__ += ["load_local"]
 __all__ += ["load_trajectories", "local_dataset_ids", "local_root", "record_dataset", "record_standard"]
 __all__ += ["reference_scores"]

@@ -1,5 +1,5 @@
-"""Minari's datasets folder, written atomically, and the room a dataset needs, checked before and while it is
-written.
+"""Minari's datasets folder, written atomically, the room a dataset needs, checked before and while it is
+written, and a dataset's files, checked before they are read ([`check_stored`][heartpole.offline.folder.check_stored]).
 
 A dataset is written into a hidden scratch folder in Minari's datasets folder and moved into place when complete
 ([`write_atomically`][heartpole.offline.folder.write_atomically]). HDF5 (through h5py, which Minari writes with) does
@@ -80,7 +80,29 @@ def _file_size_limit() -> int | None:
 
 
 def _size(count: int) -> str:
-    return f"{count / 2**20:.1f} MiB" if count >= 2**20 else f"{count / 1024:.0f} KiB"
+    for unit, power in (("TiB", 40), ("GiB", 30), ("MiB", 20)):
+        if count >= 2**power:
+            return f"{count / 2**power:,.1f} {unit}"
+    return f"{count / 1024:.0f} KiB"
+
+
+def check_stored(target_id: str, stored: Path) -> None:
+    """``ValueError`` naming ``stored``, a file of the dataset ``target_id``, unless it is a regular file and, where
+    its name says HDF5, an HDF5 file (h5py's own error names no file)."""
+    if not stored.is_file():  # a FIFO or a device would block the HDF5 reader or feed it forever
+        raise ValueError(f"dataset {target_id!r}: {stored} is not a regular file")
+    if stored.suffix == ".hdf5" and not _is_hdf5(stored):
+        empty = " (it is empty)" if stored.stat().st_size == 0 else ""
+        raise ValueError(f"dataset {target_id!r}: {stored} is not an HDF5 file{empty}; record the dataset again")
+
+
+def _is_hdf5(path: Path) -> bool:
+    """Whether ``path`` is an HDF5 file (h5py's check); ``True`` without h5py, whose absence Minari reports."""
+    try:
+        import h5py
+    except ImportError:
+        return True
+    return bool(h5py.is_hdf5(path))
 
 
 def write_atomically(creates: Mapping[str, Callable[[], None]], force: bool) -> None:

@@ -44,7 +44,7 @@ from heartpole.plots.learning import (
     read_learning_curve,
     training_figure,
 )
-from heartpole.plots.video import episode_frames, write_video
+from heartpole.plots.video import GIF_FRAME_BYTES, episode_frames, write_video
 
 __all__ = [
     "ACTION_COLORS",
@@ -52,6 +52,7 @@ __all__ = [
     "CURVE_COLOR",
     "DPI",
     "EXTRA_COLORS",
+    "GIF_FRAME_BYTES",
     "MODEL_FIGURES",
     "SLEEP_SHADE",
     "START_DAY",

@@ -69,10 +69,18 @@ def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = No
     return int(np.asarray(act_batch(policy, batch, left)).reshape(-1)[0])
 
 
+def make_env(env_id: str, **env_kwargs: Any) -> gym.Env[Any, Any]:
+    """``gymnasium.make(env_id, **env_kwargs)`` with its ``TimeLimit`` at the env's own ``max_steps`` where one is
+    given: ``make`` keeps the registered ``max_episode_steps`` otherwise, so ``max_steps=2000`` stopped at 1,000."""
+    if "max_steps" in env_kwargs:
+        env_kwargs.setdefault("max_episode_steps", env_kwargs["max_steps"])
+    with quiet_version_warnings():  # drawing or filming v0 is deliberate
+        return gym.make(env_id, **env_kwargs)
+
+
 def trace_episode(policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any) -> EpisodeTrace:
     """Run one episode of ``env_id`` with ``policy`` from ``reset(seed=seed)`` and record it."""
-    with quiet_version_warnings():  # drawing v0 is deliberate
-        env = gym.make(env_id, **env_kwargs)
+    env = make_env(env_id, **env_kwargs)
     core = cast("HeartPole", env.unwrapped)
     observation, _ = env.reset(seed=seed)
     actions: list[int]

@@ -10,23 +10,26 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
-import gymnasium as gym
 import numpy as np
 
 from heartpole.plots.canvas import VIDEO_SUFFIXES
-from heartpole.plots.episode import act
-from heartpole.policies import Policy, quiet_version_warnings
+from heartpole.plots.episode import act, make_env
+from heartpole.policies import Policy
+from heartpole.render import BASE_HEIGHT, WIDTH
 
 if TYPE_CHECKING:
     from heartpole.env import HeartPole
+
+GIF_FRAME_BYTES = WIDTH * BASE_HEIGHT
+"""The least memory a GIF's frame takes until the GIF is written: Pillow keeps every frame, as one byte a pixel,
+until it has seen the last (a variant's extra gauges make frames taller)."""
 
 
 def episode_frames(
     policy: Policy, env_id: str = "HeartPole-v0", seed: int = 0, **env_kwargs: Any
 ) -> Iterator[np.ndarray]:
     """The ``rgb_array`` frames of one episode: the first state after reset, then one frame per step."""
-    with quiet_version_warnings():  # recording v0 is deliberate
-        env = gym.make(env_id, render_mode="rgb_array", **env_kwargs)
+    env = make_env(env_id, render_mode="rgb_array", **env_kwargs)
     try:
         observation, _ = env.reset(seed=seed)
         yield cast(np.ndarray, env.render())  # render_mode="rgb_array"

@@ -69,6 +69,7 @@ from heartpole.policies.builtins import (
 from heartpole.policies.common import (
     CURVE_COLUMNS,
     CURVE_NAME,
+    MODEL_FORMAT,
     MODEL_NAME,
     SB3_ALGORITHMS,
     SIDECAR_NAME,
@@ -98,6 +99,7 @@ __all__ = [
     "Predictor",
     "SB3_ALGORITHMS",
     "MODEL_NAME",
+    "MODEL_FORMAT",
     "SIDECAR_NAME",
     "VECNORMALIZE_NAME",
     "VECNORMALIZE_JSON_NAME",

@@ -42,12 +42,25 @@ under ``VecNormalize``."""
 # The files a training run writes in its folder (every training backend writes them; loading and plots read them).
 MODEL_NAME = "model.zip"
 SIDECAR_NAME = "heartpole.json"
+MODEL_FORMAT = "heartpole-model/1"
+"""The ``format`` of the ``heartpole.json`` in a trained model's folder (written by every training backend); one
+without the field, written before it existed, is read as this version."""
 VECNORMALIZE_NAME = "vecnormalize.pkl"
 VECNORMALIZE_JSON_NAME = "vecnormalize.json"  # the same statistics as plain JSON, read without unpickling
 CURVE_NAME = "learning_curve.csv"
 CURVE_COLUMNS = ("timesteps", "mean_return", "heart_attacks", "score")
 """The columns of a learning curve: after each evaluation, its timestep and the mean return, heart
 attacks and score of the episodes finished since the last one."""
+
+
+def check_model_format(sidecar: object, record: object) -> None:
+    """``ValueError`` naming ``sidecar`` (a ``heartpole.json``) when its ``record`` (the JSON read from it) says
+    another ``format`` than [`MODEL_FORMAT`][heartpole.policies.common.MODEL_FORMAT]: a later HeartPole's model,
+    whose fields this one would misread."""
+    found = record.get("format", MODEL_FORMAT) if isinstance(record, dict) else MODEL_FORMAT
+    if found != MODEL_FORMAT:
+        raise ValueError(f"{sidecar}: format {found!r}, and this HeartPole reads {MODEL_FORMAT!r} only (or a record "
+                         "without a format, from before it had one)")  # fmt: skip
 
 
 def observation_batch(obs: npt.ArrayLike) -> np.ndarray:

@@ -35,6 +35,7 @@ from heartpole.policies.common import (
     VECNORMALIZE_JSON_NAME,
     VECNORMALIZE_NAME,
     Predictor,
+    check_model_format,
     default_dynamics,
     observation_batch,
 )
@@ -175,15 +176,12 @@ def load_model_policy(
     observations.
 
     Raises:
-        FileNotFoundError: no such file.
+        FileNotFoundError: no such file, or a folder.
         UnsafeFileError: a file that only unpickling could read, without ``trust_pickles``.
-        ValueError: not an SB3 model zip, an unknown algorithm, or spaces that do not match the env's.
+        ValueError: not a regular file, not an SB3 model zip, an unknown algorithm, or spaces that do not match the
+            env's.
     """
-    path = Path(path)
-    if path.is_dir():
-        raise FileNotFoundError(f"{path} is a folder; give the path of the model .zip inside it")
-    if not path.is_file():
-        raise FileNotFoundError(f"model file not found: {path}")
+    path = _model_path(path)
     algo = detect_algorithm(path)
     model = load_model(path, algo, trust_pickles=trust_pickles)
     _check_spaces(path, model, dynamics or default_dynamics(), obs_shape)
@@ -194,6 +192,19 @@ def load_model_policy(
     policy = ModelPolicy(model, normalizer, name=str(path))
     policy.normalizer_path = normalizer_path
     return policy
+
+
+def _model_path(path: str | Path) -> Path:
+    """``path`` if it is a regular file; else ``FileNotFoundError`` (nothing there, a folder) or ``ValueError``
+    (a named pipe, a device, a socket: opening one would block or read forever), told from its status alone."""
+    path = Path(path)
+    if path.is_dir():
+        raise FileNotFoundError(f"{path} is a folder; give the path of the model .zip inside it")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{path} is not a regular file (a named pipe, a device or a socket); give a model .zip")
+    if not path.is_file():
+        raise FileNotFoundError(f"model file not found: {path}")
+    return path
 
 
 def load_model(path: str | Path, algo: str, *, trust_pickles: bool = False) -> SavedModel | BaseAlgorithm:
@@ -341,6 +352,7 @@ def _sidecar_record(path: Path) -> dict[str, Any] | None:
         record = json.loads(sidecar.read_text())
     except (OSError, ValueError):
         return None  # detect_algorithm reports an unreadable sidecar
+    check_model_format(sidecar, record)
     if not isinstance(record, dict) or "vecnormalize" not in record:
         return None
     if record.get("model", path.name) != path.name:
@@ -376,8 +388,13 @@ def detect_algorithm(path: str | Path) -> str:
 
 def _algorithm_from_sidecar(sidecar: Path) -> str:
     try:
-        algo = json.loads(sidecar.read_text())["algo"]
-    except (OSError, ValueError, KeyError, TypeError) as error:
+        record = json.loads(sidecar.read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({one_line(error)})') from None
+    check_model_format(sidecar, record)
+    try:
+        algo = record["algo"]
+    except (KeyError, TypeError) as error:
         raise ValueError(f'{sidecar}: expected JSON like {{"algo": "ppo"}} ({one_line(error)})') from None
     if not isinstance(algo, str) or algo.lower() not in SB3_ALGORITHMS:
         raise ValueError(f"{sidecar}: unsupported algo {algo!r}; supported: {', '.join(SB3_ALGORITHMS)}")

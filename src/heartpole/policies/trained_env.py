@@ -17,7 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from heartpole.policies.common import MODEL_NAME, SIDECAR_NAME
+from heartpole.policies.common import MODEL_NAME, SIDECAR_NAME, check_model_format
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,7 @@ def trained_env(spec: str) -> TrainedEnv | None:
         record = json.loads(sidecar.read_text())
     except (OSError, ValueError) as error:
         raise ValueError(f"{sidecar}: cannot read the env it records ({' '.join(str(error).split())})") from None
+    check_model_format(sidecar, record)
     if not isinstance(record, dict) or record.get("model", path.name) != path.name or "env_id" not in record:
         return None
     env_id = record["env_id"]

@@ -36,6 +36,7 @@ from heartpole.scale.trials import (
 
 # isort: split
 from heartpole.scale.search import (
+    MAX_TRIALS,
     OBJECTIVE,
     PLOT_FILE,
     PRESET_FILE,
@@ -70,6 +71,7 @@ __all__ = [
     "ray_session",
     "run_config",
     "train_seeds_ray",
+    "MAX_TRIALS",
     "OBJECTIVE",
     "PLOT_FILE",
     "PRESET_FILE",

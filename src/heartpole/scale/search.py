@@ -37,6 +37,10 @@ SEARCH_SETTINGS_FILE = "search.json"
 SEARCH_FORMAT = "heartpole-search/1"
 """The ``format`` of the ``search.json`` this HeartPole writes and resumes (one written before the field existed,
 with the same keys, resumes too)."""
+MAX_TRIALS = 10_000
+"""The most trials one search runs: ten times the largest budget Optuna recommends for its TPE sampler (100 to
+1,000 trials), whose time to choose a trial grows as n log n with the n trials before it, and Ray Tune keeps
+every trial in memory and in the state it saves. A bigger search is better run as several."""
 TRIALS_FILE = "trials.csv"
 PRESET_FILE = "best_preset.json"
 PLOT_FILE = "search.png"
@@ -169,7 +173,7 @@ class SearchSettings:
         if not isinstance(values["seeds"], list) or not values["seeds"]:
             raise ValueError(f"seeds must be a list of seeds, got {values['seeds']!r}")
         values["seeds"] = tuple(check_integer("seeds[]", seed, 0) for seed in values["seeds"])
-        values["trials"] = check_integer("trials", values["trials"], 1)
+        values["trials"] = check_integer("trials", values["trials"], 1, MAX_TRIALS)
         for key in ("eval_episodes", "eval_seed", "search_seed"):
             if key in values:
                 values[key] = check_integer(key, values[key], 1 if key == "eval_episodes" else 0)
