@@ -295,3 +295,31 @@ def test_the_package_drinking_solver_gives_the_free_penalty_its_coffee_policy() 
         (free.expected_score, -free.expected_heart_attacks),
         (dear.expected_score, -dear.expected_heart_attacks),
     ]
+
+
+@pytest.mark.parametrize("coffee_return", [-1e9, 1e9], ids=["coffee-scores-less", "coffee-scores-more"])
+def test_the_point_where_drinks_may_pay_is_the_better_of_the_coffee_policy_and_no_drink(
+    coffee_return: float, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """Just below where drinks are proven not to pay the coffee program's grid policy may score less than the
+    no-drink optimum (v0, 1,000 decisions, penalties 1.84-6.18: by 2.8e-4 of return): the point is then the no-drink
+    optimum, not proven best. A stand-in coffee solution either side of it shows the choice."""
+    from types import SimpleNamespace
+
+    from heartpole.optimum import point as point_module
+    from heartpole.optimum.solution import _solve
+
+    monkeypatch.setenv("HEARTPOLE_CACHE_DIR", str(tmp_path))
+    params = Params(max_steps=100, heart_attack_penalty=1.0)  # drinks may pay: refused by the no-drink solver
+    figures = dict(expected_score=0.5, expected_attacks=0.2, coffees_per_episode=3.0, beers_per_episode=0.0)
+    stand_in = SimpleNamespace(expected_return=coffee_return, sleeps_per_episode=4.0, lower=coffee_return - 1.0,
+                               episodes=10, **figures)  # fmt: skip
+    monkeypatch.setattr(point_module, "solve_coffee", lambda params, error: stand_in)
+    got = point_module.frontier_point(params)
+    assert not got.optimal and math.isnan(got.upper)
+    if coffee_return < 0:
+        no_drink = _solve(params, 400, "HeartPole-v0", {"max_steps": 100, "heart_attack_penalty": 1.0}, drinks=False)
+        assert (got.expected_return, got.drinks_per_episode) == (no_drink.expected_return, 0.0)
+        assert got.lower == no_drink.expected_return - no_drink.error_bound and "no-drink" in got.how
+    else:
+        assert (got.expected_return, got.coffees_per_episode, got.lower) == (1e9, 3.0, 1e9 - 1.0)

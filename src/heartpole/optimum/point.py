@@ -12,9 +12,9 @@ from typing import Any
 from heartpole import files
 from heartpole.parameters import Params
 
-from .coffee import solve_coffee
-from .common import SOLVER_VERSION, NotCoveredError, params_dict
-from .solution import _changed_params, cache_dir, optimum
+from .coffee import CoffeeSolution, solve_coffee
+from .common import DEFAULT_GRID, SOLVER_VERSION, NotCoveredError, params_dict
+from .solution import OptimumSolution, _changed_params, _solve, cache_dir, optimum
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,9 @@ def frontier_point(env: str | Params = "HeartPole-v0", **env_kwargs: Any) -> Fro
     ([`optimum`][heartpole.optimum.solution.optimum]): no drinks, its interval from the grid's error and the history's
     worth. Where they may pay it is the coffee program's policy
     ([`solve_coffee`][heartpole.optimum.coffee.solve_coffee]), its value by Monte Carlo (``lower``: the 95% interval's
-    lower end) and no proven ``upper`` (``nan``): it drinks no beer, which may pay there (see docs/optimum.md).
+    lower end) and no proven ``upper`` (``nan``): it drinks no beer, which may pay there (see docs/optimum.md); or the
+    no-drink optimum where its value less its grid error is above that ``lower`` (the coffee program's grid policy
+    falls short of it just below where drinks are proven not to pay), with no proven ``upper`` either.
 
     Raises:
         NotCoveredError: a variant with other actions or variables (as `optimum`).
@@ -105,7 +107,7 @@ def frontier_point(env: str | Params = "HeartPole-v0", **env_kwargs: Any) -> Fro
 
 
 def _coffee_point(params: Params) -> FrontierPoint:
-    key = hashlib.sha256(json.dumps([SOLVER_VERSION, "coffee", params_dict(params)], sort_keys=True).encode())
+    key = hashlib.sha256(json.dumps([SOLVER_VERSION, "best known", params_dict(params)], sort_keys=True).encode())
     path = cache_dir() / "frontier" / f"{key.hexdigest()[:16]}.json"
     try:
         meta = json.loads(path.read_text())
@@ -116,7 +118,37 @@ def _coffee_point(params: Params) -> FrontierPoint:
     except (OSError, ValueError, TypeError, KeyError):
         pass  # not cached (or unreadable): solve it
     solved = solve_coffee(params, error=False)
-    point = FrontierPoint(
+    no_drink = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params), drinks=False)
+    better = no_drink.expected_return - no_drink.error_bound > solved.lower  # the higher known floor
+    point = _no_drink_point(no_drink) if better else _coffee_policy_point(params, solved)
+    try:
+        with files.atomic_files(path) as (target,):
+            target.write_text(files.json_text(point.summary()))
+    except OSError:
+        pass
+    return point
+
+
+def _no_drink_point(solution: OptimumSolution) -> FrontierPoint:
+    """The no-drink optimum of a setting where drinks may pay: the best policy known there, no proven ``upper``."""
+    return FrontierPoint(
+        params=solution.params,
+        expected_return=solution.expected_return,
+        expected_score=solution.expected_score,
+        expected_attacks=solution.expected_heart_attacks,
+        coffees_per_episode=0.0,
+        beers_per_episode=0.0,
+        sleeps_per_episode=solution.expected_sleeps,
+        lower=solution.expected_return - solution.error_bound,
+        upper=math.nan,
+        optimal=False,
+        how="drinks may pay, but the coffee program's policy scores less: the no-drink optimum, not proven best",
+    )
+
+
+def _coffee_policy_point(params: Params, solved: CoffeeSolution) -> FrontierPoint:
+    """The coffee program's policy where drinks may pay: its Monte Carlo value, no proven ``upper``."""
+    return FrontierPoint(
         params=params,
         expected_return=solved.expected_return,
         expected_score=solved.expected_score,
@@ -129,9 +161,3 @@ def _coffee_point(params: Params) -> FrontierPoint:
         optimal=False,
         how=f"drinks may pay: the coffee program's policy (no beer), {solved.episodes} Monte Carlo episodes",
     )
-    try:
-        with files.atomic_files(path) as (target,):
-            target.write_text(files.json_text(point.summary()))
-    except OSError:
-        pass
-    return point

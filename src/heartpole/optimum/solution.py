@@ -7,6 +7,7 @@ import contextlib
 import functools
 import hashlib
 import json
+import math
 import os
 import warnings
 from collections.abc import Iterator, Mapping
@@ -233,9 +234,13 @@ def solve(env_id: str = "HeartPole-v0", *, grid: int = DEFAULT_GRID, **env_kwarg
     return _solve(dynamics.params, int(grid), env_id, dict(env_kwargs))
 
 
-def _solve(params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any]) -> OptimumSolution:
+def _solve(
+    params: Params, grid: int, env_id: str, env_kwargs: dict[str, Any], *, drinks: bool = True
+) -> OptimumSolution:
+    """The no-drink optimum of ``params``; ``drinks=False`` skips the check that no drink pays (its
+    ``coffee_best_gain`` is then NaN: the best no-drink policy, not shown to be the optimum)."""
     fine = solve_params(params, grid)
-    coffee = check_drinks(params, fine.rate)
+    coffee = check_drinks(params, fine.rate) if drinks else math.nan
     coarse = solve_params(params, grid // 2)
     attacks = least_heart_attacks(params)
     score, error, worth, history = _with_history(
