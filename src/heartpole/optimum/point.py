@@ -90,20 +90,7 @@ def frontier_point(env: str | Params = "HeartPole-v0", **env_kwargs: Any) -> Fro
         from heartpole.registry import env_dynamics
 
         return _coffee_point(env_dynamics(env_id, kwargs).params)
-    low = solution.expected_return - solution.error_bound
-    return FrontierPoint(
-        params=solution.params,
-        expected_return=solution.expected_return,
-        expected_score=solution.expected_score,
-        expected_attacks=solution.expected_heart_attacks,
-        coffees_per_episode=0.0,
-        beers_per_episode=0.0,
-        sleeps_per_episode=solution.expected_sleeps,
-        lower=low,
-        upper=solution.expected_return + solution.margin,
-        optimal=True,
-        how="no drink pays: the no-drink optimum (grid error and history's worth around it)",
-    )
+    return _no_drink_point(solution, proven=True)
 
 
 def _coffee_point(params: Params) -> FrontierPoint:
@@ -120,7 +107,7 @@ def _coffee_point(params: Params) -> FrontierPoint:
     solved = solve_coffee(params, error=False)
     no_drink = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params), drinks=False)
     better = no_drink.expected_return - no_drink.error_bound > solved.lower  # the higher known floor
-    point = _no_drink_point(no_drink) if better else _coffee_policy_point(params, solved)
+    point = _no_drink_point(no_drink, proven=False) if better else _coffee_policy_point(params, solved)
     try:
         with files.atomic_files(path) as (target,):
             target.write_text(files.json_text(point.summary()))
@@ -129,8 +116,9 @@ def _coffee_point(params: Params) -> FrontierPoint:
     return point
 
 
-def _no_drink_point(solution: OptimumSolution) -> FrontierPoint:
-    """The no-drink optimum of a setting where drinks may pay: the best policy known there, no proven ``upper``."""
+def _no_drink_point(solution: OptimumSolution, proven: bool) -> FrontierPoint:
+    """The no-drink optimum's point: ``proven`` where no drink pays (its interval from the grid's error and the
+    history's worth), else the best policy known where drinks may pay (no proven ``upper``)."""
     return FrontierPoint(
         params=solution.params,
         expected_return=solution.expected_return,
@@ -140,9 +128,11 @@ def _no_drink_point(solution: OptimumSolution) -> FrontierPoint:
         beers_per_episode=0.0,
         sleeps_per_episode=solution.expected_sleeps,
         lower=solution.expected_return - solution.error_bound,
-        upper=math.nan,
-        optimal=False,
-        how="drinks may pay, but the coffee program's policy scores less: the no-drink optimum, not proven best",
+        upper=solution.expected_return + solution.margin if proven else math.nan,
+        optimal=proven,
+        how="no drink pays: the no-drink optimum (grid error and history's worth around it)"
+        if proven
+        else "drinks may pay, but the coffee program's policy scores less: the no-drink optimum, not proven best",
     )
 
 
