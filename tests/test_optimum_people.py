@@ -142,3 +142,43 @@ def test_the_solver_covers_every_default_person() -> None:
     assert np.all(np.isfinite(solved.expected_returns)) and np.all(solved.error_bounds < 1e-5)
     for person, solution in zip(People.default().cohort, solved.solutions):
         assert solution.params == person.params()
+
+
+def test_from_the_first_lookup_that_solves_the_rest_go_to_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A cohort whose first people are cached (the default cohort's Ada is v0) is looked up here until a lookup
+    takes a solve; the people after it go to the worker pool (they were all solved here, one at a time)."""
+    import time
+    from concurrent.futures import Future
+
+    solving = {"Cy"}  # Ada and Bo are cache hits, Cy is the first solve
+    submitted: list[str] = []
+
+    def lookup(env_id: str, kwargs: dict[str, object]) -> str:
+        if kwargs["name"] in solving:
+            time.sleep(0.05)
+        return f"solution of {kwargs['name']}"
+
+    class Pool:
+        def __init__(self, workers: int, mp_context: object) -> None:
+            assert workers == 2
+
+        def __enter__(self) -> Pool:
+            return self
+
+        def __exit__(self, *exc: object) -> None:
+            return None
+
+        def submit(self, worker: object, env_id: str, kwargs: dict[str, object]) -> Future[str]:
+            submitted.append(str(kwargs["name"]))
+            future: Future[str] = Future()
+            future.set_result(lookup(env_id, kwargs))
+            return future
+
+    monkeypatch.setattr(optimum_people, "optimum", lookup)
+    monkeypatch.setattr(optimum_people, "ProcessPoolExecutor", Pool)
+    monkeypatch.setattr(optimum_people, "SOLVED_HERE_SECONDS", 0.02)
+    jobs = [(name, {"name": name}) for name in ("Ada", "Bo", "Cy", "Di", "Ed")]
+    done: list[tuple[int, int]] = []
+    solved = optimum_people._solve_distinct("HeartPole-v0", jobs, 2, lambda k, n: done.append((k, n)))  # type: ignore[arg-type]
+    assert solved == [f"solution of {name}" for name in ("Ada", "Bo", "Cy", "Di", "Ed")]
+    assert submitted == ["Di", "Ed"] and done == [(k, 5) for k in range(1, 6)]

@@ -1,7 +1,5 @@
-"""``heartpole evaluate``, ``heartpole compare`` and ``heartpole baselines``: honest numbers for policies.
-
-The work is done by [`heartpole.evaluation`][heartpole.evaluation]; these commands parse, call it and print.
-"""
+"""``heartpole evaluate``, ``heartpole compare`` and ``heartpole baselines``: honest numbers for policies
+([`heartpole.evaluation`][heartpole.evaluation] does the work; these commands parse, call it and print)."""
 
 from __future__ import annotations
 
@@ -143,8 +141,7 @@ def _env_kwargs(args: argparse.Namespace, specs: Sequence[str]) -> dict[str, Any
     return kwargs
 
 
-# ------------------------------------------------------------------------------------------------------
-# handlers
+# handlers ---------------------------------------------------------------------------------------------
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
@@ -191,8 +188,7 @@ def run_baselines(args: argparse.Namespace) -> int:
     return 0
 
 
-# ------------------------------------------------------------------------------------------------------
-# running the library with clear errors
+# running the library with clear errors --------------------------------------------------------------
 
 
 def _policy(spec: str, args: argparse.Namespace) -> PolicyLike:
@@ -247,8 +243,7 @@ def _write_both(first: Path, first_text: str, second: Path, second_text: str) ->
         second_temporary.write_text(second_text)
 
 
-# ------------------------------------------------------------------------------------------------------
-# formatting
+# formatting -----------------------------------------------------------------------------------------
 
 
 def _interval(value: float, interval: Sequence[float], digits: int) -> list[str]:

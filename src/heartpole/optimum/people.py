@@ -207,9 +207,9 @@ def solve_people(
     """Each person's optimum, each distinct person solved once and cached as [`optimum`][heartpole.optimum.optimum]
     caches (memory and disk: later calls only load).
 
-    The first distinct person is looked up here; if that took a solve (longer than
-    ``SOLVED_HERE_SECONDS``), the others are solved
-    ``processes`` at a time in worker processes (spawned: safe beside numba's threads), else here.
+    Distinct people are looked up here while each lookup is a cache hit; from the first that took a solve (longer
+    than ``SOLVED_HERE_SECONDS``), the others are solved ``processes`` at a time in worker processes (spawned: safe
+    beside numba's threads).
 
     Args:
         people: a finite cohort, or a population's name (``"default"``).
@@ -243,23 +243,23 @@ def solve_people(
 def _solve_distinct(
     env_id: str, jobs: list[tuple[str, dict[str, Any]]], workers: int, progress: ProgressCallback
 ) -> list[OptimumSolution]:
-    """Solve or load each ``(name, env_kwargs)``: the first here, then the rest in workers if it was solved."""
+    """Solve or load each ``(name, env_kwargs)``: here while lookups are cache hits, then, from the first lookup that
+    was a solve, the rest in workers (so a cohort whose first person is cached, v0's Ada, is solved in parallel)."""
     total = len(jobs)
-    start = time.perf_counter()
-    name, first = jobs[0]
-    solutions = [_named(name, lambda: optimum(env_id, first))]
-    progress(1, total)
-    if workers > 1 and total > 1 and time.perf_counter() - start > SOLVED_HERE_SECONDS:
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(min(workers, total - 1), mp_context=context) as pool:
-            futures = [(name, pool.submit(_worker, env_id, kwargs)) for name, kwargs in jobs[1:]]
-            for name, future in futures:
-                solutions.append(_named(name, future.result))
-                progress(len(solutions), total)
-        return solutions
-    for name, kwargs in jobs[1:]:
+    solutions: list[OptimumSolution] = []
+    for index, (name, kwargs) in enumerate(jobs):
+        start = time.perf_counter()
         solutions.append(_named(name, lambda: optimum(env_id, kwargs)))  # noqa: B023 (called at once)
         progress(len(solutions), total)
+        rest = jobs[index + 1 :]
+        if workers > 1 and rest and time.perf_counter() - start > SOLVED_HERE_SECONDS:
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(min(workers, len(rest)), mp_context=context) as pool:
+                futures = [(name, pool.submit(_worker, env_id, kwargs)) for name, kwargs in rest]
+                for name, future in futures:
+                    solutions.append(_named(name, future.result))
+                    progress(len(solutions), total)
+            break
     return solutions
 
 

@@ -67,8 +67,8 @@ def frontier_point(env: str | Params = "HeartPole-v0", **env_kwargs: Any) -> Fro
     worth. Where they may pay it is the coffee program's policy
     ([`solve_coffee`][heartpole.optimum.coffee.solve_coffee]), its value by Monte Carlo (``lower``: the 95% interval's
     lower end) and no proven ``upper`` (``nan``): it drinks no beer, which may pay there (see docs/optimum.md); or the
-    no-drink optimum where its value less its grid error is above that ``lower`` (the coffee program's grid policy
-    falls short of it just below where drinks are proven not to pay), with no proven ``upper`` either.
+    no-drink optimum where its value is above the coffee policy's estimate (the coffee program's grid policy falls
+    short of it just below where drinks are proven not to pay), with no proven ``upper`` either.
 
     Raises:
         NotCoveredError: a variant with other actions or variables (as `optimum`).
@@ -106,7 +106,7 @@ def _coffee_point(params: Params) -> FrontierPoint:
         pass  # not cached (or unreadable): solve it
     solved = solve_coffee(params, error=False)
     no_drink = _solve(params, DEFAULT_GRID, "HeartPole-v0", _changed_params(params), drinks=False)
-    better = no_drink.expected_return - no_drink.error_bound > solved.lower  # the higher known floor
+    better = no_drink.expected_return > solved.expected_return
     point = _no_drink_point(no_drink, proven=False) if better else _coffee_policy_point(params, solved)
     try:
         with files.atomic_files(path) as (target,):
