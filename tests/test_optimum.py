@@ -415,6 +415,7 @@ def test_the_drinking_grid_follows_a_half_hour_without_interpolating() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.audit  # about a minute; the default suite's short drinking DP (above) runs solve_drinking in CI
 def test_the_drinking_grid_agrees_with_the_env_on_a_fixed_rule() -> None:
     """A drinking rule's expected work on the grid matches the evaluator's episodes (the env's own step)."""
     from heartpole.optimum import drinking_rule_value

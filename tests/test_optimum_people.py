@@ -115,7 +115,8 @@ def test_only_finite_covered_cohorts_are_solved() -> None:
         solve_people(sober)
 
 
-@pytest.mark.slow  # three solves, one in a spawned worker that imports everything: about 12 s
+@pytest.mark.slow  # three solves, one in a spawned worker that imports everything: about 45 s in CI
+@pytest.mark.audit  # CI's default cohort is solved in spawned workers (the tables and oracle tests check it)
 def test_workers_solve_what_the_parent_would(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """With an empty cache the first person is solved here and the second in a spawned worker: the same
     solution as solving it here, saved in the parent's cache."""
