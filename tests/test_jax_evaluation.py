@@ -78,7 +78,7 @@ def test_a_step_s_generator_key_is_its_key_s_own_bits() -> None:
     assert np.all(np.isfinite(np.asarray(env.step(rbg, state, 1, params)[0])))
 
 
-@pytest.mark.parametrize(("policy", "env_kwargs"), [("expert", {}), ("optimal", {}), ("reference", {"max_steps": 300})])
+@pytest.mark.parametrize(("policy", "env_kwargs"), [("expert", {}), ("optimal", {}), ("reference", {"max_steps": 100})])
 def test_the_same_seed_plays_the_same_episodes_and_gives_the_same_table(policy, env_kwargs) -> None:
     """2,000 evaluation episodes on numba and on JAX: at least 99.9% identical (float32 rounding of ``exp`` may
     move a coin or a threshold in a few), and every column of the table within 1e-4."""
@@ -104,8 +104,8 @@ def test_compare_pairs_a_jax_result_with_a_numpy_one_on_common_random_numbers() 
     expert - nothing is as tight either way, and the differences agree."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
-        numpy_pair = heartpole.compare("expert", "nothing", episodes=500, env_kwargs={"max_steps": 200})
-    mixed = Comparison.of(evaluate("expert", episodes=500, env_kwargs={"max_steps": 200}, regret=False), numpy_pair.b)
+        numpy_pair = heartpole.compare("expert", "nothing", episodes=500, env_kwargs={"max_steps": 100})
+    mixed = Comparison.of(evaluate("expert", episodes=500, env_kwargs={"max_steps": 100}, regret=False), numpy_pair.b)
     assert abs(mixed.expected_difference - numpy_pair.expected_difference) < 1e-4
     width = lambda ci: ci[1] - ci[0]  # noqa: E731
     assert width(mixed.expected_ci95) < 1.5 * width(numpy_pair.expected_ci95)

@@ -10,10 +10,13 @@ import pytest
 
 import heartpole.optimum.people as optimum_people
 from heartpole.optimum import NotCoveredError, optimum, oracle_regret, solve, solve_people
+from heartpole.parameters import Params
 from heartpole.people import People, Person, Uniform
 from heartpole.stats import confidence_interval
 
-# Ada is v0 (solved by other tests of the session too); Bo sleeps 6 hours (a fast solve); Cy is Ada again
+# Ada is v0, Bo sleeps 6 hours, Cy is Ada again; on a short day with costly heart attacks, where drinks are ruled
+# out by the cheap per-step check (a solve of about a second; v0's full day takes 15 s with the lifetime check)
+BASE = {"max_steps": 100, "heart_attack_penalty": 800.0}
 SMALL = People(
     cohort=[
         Person("Ada", sleep_half_hours=16, wake_alertness=(0.7, 1.3)),
@@ -25,28 +28,30 @@ SMALL = People(
 
 @pytest.fixture(scope="module")
 def small() -> optimum_people.PeopleOptimum:
-    return solve_people(SMALL)
+    return solve_people(SMALL, env_kwargs=BASE)
 
 
 def test_each_person_gets_their_own_optimum(small: optimum_people.PeopleOptimum) -> None:
-    assert [s.params for s in small.solutions] == [p.params() for p in SMALL.cohort]
-    assert small.solutions[0].expected_return == optimum("HeartPole-v0").expected_return
-    assert small.solutions[1].expected_return == optimum("HeartPole-v0", SMALL.cohort[1].values()).expected_return
+    assert [s.params for s in small.solutions] == [p.params(Params(**BASE)) for p in SMALL.cohort]
+    assert small.solutions[0].expected_return == optimum("HeartPole-v0", BASE).expected_return
+    bo = optimum("HeartPole-v0", {**BASE, **SMALL.cohort[1].values()})
+    assert small.solutions[1].expected_return == bo.expected_return
     np.testing.assert_array_equal(small.expected_returns, [s.expected_return for s in small.solutions])
     assert small.expected_returns[0] == small.expected_returns[2] != small.expected_returns[1]
 
 
 def test_the_env_kwargs_are_each_persons_base() -> None:
     cohort = People(cohort=[Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2))])
-    base = {"max_steps": 800, "sleep_half_hours": 20}
+    base = {**BASE, "sleep_half_hours": 20}
     solved = solve_people(cohort, env_kwargs=base)
-    assert solved.solutions[0].params.max_steps == 800 and solved.env_kwargs == base
+    assert solved.solutions[0].params.max_steps == 100 and solved.env_kwargs == base
+    assert solved.solutions[0].params.heart_attack_penalty == 800.0
     assert solved.solutions[0].params.sleep_half_hours == 12  # the person's own field wins
 
 
 def test_equal_people_are_solved_once_and_progress_is_reported() -> None:
     calls: list[tuple[int, int]] = []
-    solve_people(SMALL, progress=lambda done, total: calls.append((done, total)))
+    solve_people(SMALL, env_kwargs=BASE, progress=lambda done, total: calls.append((done, total)))
     assert calls == [(1, 2), (2, 2)]  # Ada and Cy are one person to the solver
 
 
@@ -56,7 +61,7 @@ def test_the_oracle_table_acts_as_each_persons_optimal_policy(small: optimum_peo
     person = rng.integers(0, 3, n)
     alertness = rng.uniform(-1.0, 2.0, n)
     awake = rng.integers(0, 90, n)  # beyond both people's max_awake too
-    left = rng.integers(1, 1001, n)
+    left = rng.integers(1, BASE["max_steps"] + 1, n)
     oracle = small.sleeps(person, alertness, awake, left)
     for index, solution in enumerate(small.solutions):
         mine = person == index
