@@ -119,6 +119,13 @@ def test_the_env_built_directly_takes_a_time_limit_that_shortens_it() -> None:
         heartpole.HeartPole(max_steps=5, max_episode_steps=9)
 
 
+@pytest.mark.parametrize("value", ["5", 0, True, 2.5])
+def test_a_bad_time_limit_is_refused_by_its_name(value: object) -> None:
+    for kwargs in ({}, {"max_steps": 9}):
+        with pytest.raises(ValueError, match=rf"^max_episode_steps must be an integer in \[1, .*got {value!r}"):
+            heartpole.HeartPole(max_episode_steps=value, **kwargs)
+
+
 def _time_limits(env: gym.Env) -> list[int]:
     limits = []
     while isinstance(env, gym.Wrapper):

@@ -14,7 +14,7 @@ import copy
 
 from gymnasium.envs.registration import EnvSpec
 
-from heartpole.parameters import Params, check_integer
+from heartpole.parameters import MAX_STEPS, Params, check_integer
 
 
 def episode_length(max_steps: int | None, max_episode_steps: int | None) -> int:
@@ -29,12 +29,12 @@ def episode_length(max_steps: int | None, max_episode_steps: int | None) -> int:
     >>> episode_length(None, 1500), episode_length(1000, 500), episode_length(None, None)
     (1500, 500, 1000)
     """
-    if max_steps is None:
-        return Params.max_steps if max_episode_steps is None else max_episode_steps
     if max_episode_steps is None:
-        return max_steps
-    steps = check_integer("max_steps", max_steps, 1)
-    limit = check_integer("max_episode_steps", max_episode_steps, 1)
+        return Params.max_steps if max_steps is None else max_steps  # the env checks max_steps with its parameters
+    limit = check_integer("max_episode_steps", max_episode_steps, 1, MAX_STEPS)
+    if max_steps is None:
+        return limit
+    steps = check_integer("max_steps", max_steps, 1, MAX_STEPS)
     if limit > steps:
         raise ValueError(
             f"max_episode_steps={limit} is above max_steps={steps}, the env's episode length: a time limit only "
