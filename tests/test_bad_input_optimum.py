@@ -45,11 +45,13 @@ def test_a_population_given_as_a_param_is_refused(capsys: pytest.CaptureFixture[
         solve("HeartPole-v0", people="default")
 
 
-# A6: max_episode_steps is the episode length, as for the env itself: alone, or a time limit shortening max_steps
+# A6: max_episode_steps is a time limit on the env's max_steps (the registered one unless given), as make_vec's
 
 
-def test_max_episode_steps_is_the_episode_length() -> None:
-    assert env_dynamics("HeartPole-v0", {"max_episode_steps": 3000}).params.max_steps == 3000
+def test_max_episode_steps_is_a_time_limit_on_the_episode_length() -> None:
+    assert env_dynamics("HeartPole-v0", {"max_episode_steps": 500}).params.max_steps == 500
+    with pytest.raises(ValueError, match="max_episode_steps=3000 is above max_steps=1000.*with max_steps=3000"):
+        env_dynamics("HeartPole-v0", {"max_episode_steps": 3000})  # what make_vec refuses and make cuts at 1,000
     assert env_dynamics("HeartPole-v0", {"max_steps": 2000, "max_episode_steps": 2000}).params.max_steps == 2000
     assert env_dynamics("HeartPole-v0", {"max_steps": 3000, "max_episode_steps": 2000}).params.max_steps == 2000
     with pytest.raises(ValueError, match="max_episode_steps=3000 is above max_steps=2000"):

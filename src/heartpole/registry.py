@@ -395,10 +395,10 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
 def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dynamics:
     """The [`Dynamics`][heartpole.dynamics.Dynamics] of the HeartPole env ``env_id`` built with ``env_kwargs``.
 
-    ``max_episode_steps`` is a time limit on the env's ``max_steps`` here, as for the env built directly
-    ([`episode_length`][heartpole.time_limit.episode_length]): alone it is the length, with ``max_steps`` it may
-    shorten it (``gymnasium.make`` alone would give it to its ``TimeLimit`` wrapper, never to the env, and build
-    an env of the registered length).
+    ``max_episode_steps`` is a time limit on the env's ``max_steps`` (the registered one unless given), as
+    ``gymnasium.make_vec`` gives it to the vector env ([`episode_length`][heartpole.time_limit.episode_length]):
+    it may shorten the episodes, and one above ``max_steps`` is refused (``gymnasium.make`` would give it to a
+    ``TimeLimit`` wrapper, which cannot lengthen them).
 
     Raises:
         ValueError: for an unknown id, a bad value, a ``max_episode_steps`` above ``max_steps``, or an env that is
@@ -407,7 +407,8 @@ def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dy
     """
     kwargs = dict(env_kwargs or {})
     if "max_episode_steps" in kwargs:  # gym.make hands it to a TimeLimit only; the env takes it, as make_vec does
-        kwargs["max_steps"] = episode_length(kwargs.get("max_steps"), kwargs.pop("max_episode_steps"))
+        registered = getattr(gym.registry.get(env_id), "kwargs", {}).get("max_steps")
+        kwargs["max_steps"] = episode_length(kwargs.get("max_steps", registered), kwargs.pop("max_episode_steps"))
     try:
         with quiet_version_warnings():
             env = gym.make(env_id, **kwargs)
