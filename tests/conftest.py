@@ -16,7 +16,9 @@ import pytest
 @pytest.fixture(autouse=True, scope="session")
 def _private_caches(tmp_path_factory: pytest.TempPathFactory) -> None:
     """Point ``HEARTPOLE_CACHE_DIR`` and ``HEARTPOLE_JAX_CACHE`` at session temporary folders unless the
-    caller chose them."""
+    caller chose them, and ``SB3_LOGDIR`` at this worker's own: a test that calls SB3's ``learn`` gets SB3's
+    default logger, which makes an empty ``SB3-<timestamp>/`` folder in the system's temporary folder otherwise
+    (``stable_baselines3.common.logger.configure``)."""
     if "HEARTPOLE_CACHE_DIR" not in os.environ:
         # One folder for the run's xdist workers (their temporary folders share a parent): what one solved, the
         # others load. The optimum's cache writes atomically, so workers may share it, as CI's stages do.
@@ -30,6 +32,8 @@ def _private_caches(tmp_path_factory: pytest.TempPathFactory) -> None:
     (Path(os.environ["HEARTPOLE_CACHE_DIR"]) / "optimum").mkdir(parents=True, exist_ok=True)
     if "HEARTPOLE_JAX_CACHE" not in os.environ:
         os.environ["HEARTPOLE_JAX_CACHE"] = str(tmp_path_factory.mktemp("heartpole-jax-cache"))
+    if "SB3_LOGDIR" not in os.environ:
+        os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3-logs"))
 
 
 RAY_FILES = frozenset({"test_scale.py", "test_signals.py"})

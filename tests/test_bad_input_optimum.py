@@ -45,19 +45,22 @@ def test_a_population_given_as_a_param_is_refused(capsys: pytest.CaptureFixture[
         solve("HeartPole-v0", people="default")
 
 
-# A6: max_episode_steps is the episode length, as for the env itself
+# A6: max_episode_steps is a time limit on the env's max_steps (the registered one unless given), as make_vec's
 
 
-def test_max_episode_steps_is_the_episode_length() -> None:
-    assert env_dynamics("HeartPole-v0", {"max_episode_steps": 3000}).params.max_steps == 3000
+def test_max_episode_steps_is_a_time_limit_on_the_episode_length() -> None:
+    assert env_dynamics("HeartPole-v0", {"max_episode_steps": 500}).params.max_steps == 500
+    with pytest.raises(ValueError, match="max_episode_steps=3000 is above max_steps=1000.*with max_steps=3000"):
+        env_dynamics("HeartPole-v0", {"max_episode_steps": 3000})  # what make_vec refuses and make cuts at 1,000
     assert env_dynamics("HeartPole-v0", {"max_steps": 2000, "max_episode_steps": 2000}).params.max_steps == 2000
-    with pytest.raises(ValueError, match="disagree"):
+    assert env_dynamics("HeartPole-v0", {"max_steps": 3000, "max_episode_steps": 2000}).params.max_steps == 2000
+    with pytest.raises(ValueError, match="max_episode_steps=3000 is above max_steps=2000"):
         env_dynamics("HeartPole-v0", {"max_steps": 2000, "max_episode_steps": 3000})
 
 
-def test_the_cli_refuses_two_lengths_that_disagree(capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_cli_refuses_a_time_limit_above_the_length(capsys: pytest.CaptureFixture[str]) -> None:
     argv = ["optimum", "--check", "0", "--param", "max_steps=2000", "--param", "max_episode_steps=3000"]
-    error_line(run(capsys, *argv), "max_steps=2000", "max_episode_steps=3000", "disagree")
+    error_line(run(capsys, *argv), "max_steps=2000", "max_episode_steps=3000", "is above")
 
 
 # B5, B6: messages that name the option, the value and what is accepted

@@ -62,6 +62,19 @@ def test_a_spec_keeps_a_variants_parameters_and_makes_its_native_vector_env() ->
     vec.close()
 
 
+def test_a_spec_of_an_episode_length_given_as_max_episode_steps_recovers_that_length() -> None:
+    """The env recovered was one of 1,000 steps: ``recorded_env`` unwrapped the ``TimeLimit`` that
+    ``gymnasium.make`` gave ``max_episode_steps`` to, and the env kept the registered length."""
+    spec = recorded_spec("HeartPole-v0", {"max_episode_steps": 500})
+    assert spec.max_episode_steps == 500 and spec.kwargs == {"env_id": "HeartPole-v0", "max_steps": 500}
+    env = gym.make(gym.envs.registration.EnvSpec.from_json(spec.to_json()))
+    assert env.unwrapped.max_steps == env.spec.max_episode_steps == 500
+    env.close()
+    vec = gym.make_vec(spec, 2, vectorization_mode="vector_entry_point")
+    assert vec.unwrapped.max_steps == vec.spec.max_episode_steps == 500
+    vec.close()
+
+
 def test_a_spec_refuses_what_it_cannot_store_or_make() -> None:
     with pytest.raises(ValueError, match="NoSuchPole-v0"):
         recorded_spec("NoSuchPole-v0")

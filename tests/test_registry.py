@@ -1,4 +1,5 @@
-"""Registration: time limits and solved bars in every spec, one episode length, reserved ids, no global filters."""
+"""Registration: episode lengths and solved bars in every spec, reserved ids, no global filters (the time limit
+through make and make_vec: test_time_limit.py)."""
 
 from __future__ import annotations
 
@@ -42,9 +43,9 @@ def steps_to_truncation(env: gym.Env, limit: int = 100) -> int:
 
 
 @pytest.mark.parametrize("env_id", ["HeartPole-v0", "HeartPole-v1"])
-def test_builtin_specs_carry_the_time_limit_and_solved_bar(env_id: str) -> None:
+def test_builtin_specs_carry_the_episode_length_and_solved_bar(env_id: str) -> None:
     spec = gym.spec(env_id)
-    assert spec.max_episode_steps == 1000 and isinstance(spec.max_episode_steps, int)
+    assert spec.kwargs["max_steps"] == 1000 and isinstance(spec.kwargs["max_steps"], int)
     # the written-out thresholds are what solved_bar computes from the dynamics
     computed = solved_bar(env_dynamics(env_id)).reward_threshold
     assert spec.reward_threshold == BUILTIN_REWARD_THRESHOLDS[env_id] == computed
@@ -61,7 +62,7 @@ def test_v0_bar_is_issue_3s() -> None:
 
 def test_variant_spec_takes_its_own_length_and_bar(variant) -> None:
     spec = variant("ShortPole-v0", max_steps=40, heart_attack_proclivity=0.0)
-    assert spec.max_episode_steps == 40
+    assert spec.kwargs["max_steps"] == 40
     bar = solved_bar(env_dynamics("ShortPole-v0"))
     assert bar.heart_attacks_at_most == 0.0  # no risk at all: no heart attack is acceptable
     assert spec.reward_threshold == bar.reward_threshold == bar.score_at_least
@@ -89,15 +90,16 @@ def test_vector_env_takes_either_name_and_its_spec_agrees(kwargs: dict) -> None:
     assert env.step(np.zeros(2, dtype=np.int64))[3].all()
 
 
-def test_vector_env_refuses_two_different_lengths() -> None:
-    with pytest.raises(ValueError, match="max_steps=5 and max_episode_steps=9 disagree"):
+def test_vector_env_takes_a_time_limit_below_its_length_and_refuses_one_above() -> None:
+    assert vec("HeartPole-v0", max_steps=9, max_episode_steps=5).unwrapped.max_steps == 5
+    with pytest.raises(ValueError, match="max_episode_steps=9 is above max_steps=5"):
         vec("HeartPole-v0", max_steps=5, max_episode_steps=9)
 
 
-def test_single_env_takes_either_name_and_refuses_two_different_lengths() -> None:
+def test_single_env_takes_either_name_and_refuses_a_time_limit_above_its_length() -> None:
     assert steps_to_truncation(heartpole.HeartPole(max_episode_steps=7)) == 7
     assert steps_to_truncation(heartpole.HeartPoleV1(max_episode_steps=7)) == 7
-    with pytest.raises(ValueError, match="max_steps=5 and max_episode_steps=9 disagree"):
+    with pytest.raises(ValueError, match="max_episode_steps=9 is above max_steps=5"):
         heartpole.HeartPole(max_steps=5, max_episode_steps=9)
 
 

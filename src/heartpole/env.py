@@ -22,6 +22,7 @@ from heartpole.observation import Observer, Seen, observe
 from heartpole.parameters import Params, Variable, check_keywords
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
+from heartpole.time_limit import OwnTimeLimit, episode_length
 
 CONSTRUCTOR_KEYWORDS = (
     "heart_attack_proclivity", "max_steps", "render_mode", "actions", "variables", "max_episode_steps", "people",
@@ -82,23 +83,6 @@ def build_dynamics(
     return Dynamics(params=params, **extra)
 
 
-def episode_length(max_steps: int | None, max_episode_steps: int | None, *, max_steps_wins: bool = False) -> int:
-    """The episode length from HeartPole's ``max_steps`` and Gymnasium's name for it, ``max_episode_steps``.
-
-    Either may be given (default 1000). Both given and different: ``ValueError``, or ``max_steps`` when
-    ``max_steps_wins`` (the vector env's case: ``gymnasium.make_vec`` passes the spec's
-    ``max_episode_steps`` along with the caller's ``max_steps``).
-    """
-    if max_steps is None:
-        return Params.max_steps if max_episode_steps is None else max_episode_steps
-    if max_episode_steps is not None and max_episode_steps != max_steps and not max_steps_wins:
-        raise ValueError(
-            f"max_steps={max_steps!r} and max_episode_steps={max_episode_steps!r} disagree; they are the same "
-            "number (the episode length), so give one of them"
-        )
-    return max_steps
-
-
 def compiled_for(function: Any, arguments: tuple[Any, ...]) -> Any:
     """The compiled code of ``function`` (a numba dispatcher) for the types of ``arguments``, to be called without
     numba's dispatch, which types every argument at every call (about 0.35 us of the single env's step, half its
@@ -116,7 +100,7 @@ def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> None:
         raise ValueError(f"render_mode must be None or one of {list(modes)}, got {render_mode!r}")
 
 
-class HeartPole(gym.Env[np.ndarray, np.int64]):
+class HeartPole(OwnTimeLimit, gym.Env[np.ndarray, np.int64]):
     """HeartPole: balance your productivity against your heart, one half-hour at a time.
 
     ## Description
@@ -170,16 +154,19 @@ class HeartPole(gym.Env[np.ndarray, np.int64]):
 
     ## Episode End
     Nobody dies of HeartPole's heart attacks, so episodes never terminate. They are truncated after
-    ``max_steps`` decisions (1000 by default, the tutorial's ``done``); ``max_episode_steps`` is accepted as
-    Gymnasium's name for the same number. The registered spec's ``max_episode_steps`` is that number too,
-    so ``env.spec.max_episode_steps`` is an integer and ``gymnasium.make`` adds its ``TimeLimit`` wrapper
-    with the same limit. Change the length with ``gymnasium.make(id, max_steps=n, max_episode_steps=n)``
-    or a variant ([`heartpole.register_variant`][heartpole.registry.register_variant] with ``max_steps=n``):
-    ``gymnasium.make`` hands its own ``max_episode_steps`` to the ``TimeLimit`` wrapper only, never to the env, and
-    builds that wrapper from the registered spec when it is not given. ``gymnasium.make_vec`` passes it to the vector
-    env, which takes either name. Stepping on after truncation without the wrapper (the env made directly) continues the
-    same day with ``truncated=True`` on every step; through ``gymnasium.make``, Gymnasium's ``OrderEnforcing`` and
-    ``TimeLimit`` wrappers do the same. Call ``reset`` to start afresh.
+    ``max_steps`` decisions (1000 by default, the tutorial's ``done``): the env is its own time limit. The
+    registered spec declares that length in its kwargs (``gymnasium.spec(id).kwargs["max_steps"]``) and no
+    ``max_episode_steps``, so ``gymnasium.make`` adds no ``TimeLimit`` wrapper, and ``env.spec.max_episode_steps``
+    reports the env's ``max_steps``: set the length with ``gymnasium.make(id, max_steps=n)`` (or a variant's
+    ``max_steps``). ``gymnasium.make(id, max_episode_steps=k)`` gives ``k`` to a ``TimeLimit`` wrapper only, never
+    to the env (Gymnasium's rule): ``k`` below ``max_steps`` shortens the episodes to ``k``; above it, the episodes
+    still end at ``max_steps`` though ``env.spec.max_episode_steps`` (the wrapper's) says ``k``. The env built
+    directly takes ``max_episode_steps`` as the same kind of limit: alone it is the length; with ``max_steps`` it
+    may shorten it, and one above it is refused (``ValueError``); so does the vector env, which
+    ``gymnasium.make_vec`` gives it along with the spec's ``max_steps``
+    ([`episode_length`][heartpole.time_limit.episode_length]). Stepping on after truncation continues the same day
+    with ``truncated=True`` on every step (Gymnasium's ``OrderEnforcing`` wrapper lets it). Call ``reset`` to start
+    afresh.
 
     ## Info
     ``action_taken`` (the index of the action taken, an int; ``env.unwrapped.action_names[i]`` is its name),

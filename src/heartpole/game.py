@@ -119,7 +119,7 @@ def new_game(env_id: str, steps: int, seed: int) -> Game:
     import gymnasium as gym
 
     try:
-        env = gym.make(env_id, max_steps=steps, max_episode_steps=steps)  # else make keeps the spec's TimeLimit
+        env = gym.make(env_id, max_steps=steps)
     except gym.error.Error as error:
         raise ValueError(f"cannot play {env_id!r}: {error}") from None
     except TypeError:  # it does not take HeartPole's arguments

@@ -33,11 +33,12 @@ from gymnasium.envs.registration import EnvSpec, parse_env_id
 
 from heartpole.actions import V0_ACTIONS, V1_ACTIONS, V1_VARIABLES, Action, as_action
 from heartpole.dynamics import Dynamics
-from heartpole.env import build_dynamics, episode_length
+from heartpole.env import build_dynamics
 from heartpole.parameters import V0_VARIABLES, Params, Variable, check_keywords
 from heartpole.rates import best_known_rate as best_known_rate  # the rate the bar is measured against
 from heartpole.solved import V0_BAR, V1_BAR, SolvedBar
 from heartpole.solved import solved_bar as bar_of_params
+from heartpole.time_limit import episode_length
 
 V0_ID = "HeartPole-v0"
 V1_ID = "HeartPole-v1"
@@ -90,18 +91,21 @@ def register_envs() -> None:
     """Register ``HeartPole-v0`` and ``HeartPole-v1`` (single env and native vector env) unless registered, and
     ``mo-heartpole-v0`` (v0 with a vector reward, for MO-Gymnasium).
 
-    Each spec carries ``max_episode_steps=1000`` (the default ``max_steps``) and its ``reward_threshold``
-    ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor and so would warn that
-    ``HeartPole-v0`` "is out of date"; it is not (v1 is a richer variant, v0 stays the reference benchmark), and
-    Gymnasium offers no per-id way to say so. So where the user's own warning filters say nothing about that
-    warning, one filter ignores it, that message from Gymnasium's registration module alone; where they say
-    something (``-W error::DeprecationWarning``, say),
+    Each spec declares its episode length as the env's own parameter, ``kwargs["max_steps"]`` (1000), and no
+    ``max_episode_steps``: the env is its own time limit, so ``gymnasium.make`` wraps no ``TimeLimit`` around it
+    and ``env.spec.max_episode_steps`` reports the env's ``max_steps`` (`heartpole.time_limit`). Each carries
+    its ``reward_threshold`` ([`solved_bar`][heartpole.registry.solved_bar]). Gymnasium reads v1 as v0's successor
+    and so would warn that ``HeartPole-v0`` "is out of date"; it is not (v1 is a richer variant, v0 stays the
+    reference benchmark), and Gymnasium offers no per-id way to say so. So where the user's own warning filters
+    say nothing about that warning, one filter ignores it, that message from Gymnasium's registration module
+    alone; where they say something (``-W error::DeprecationWarning``, say),
     [`honour_version_warning_filters`][heartpole.registry.honour_version_warning_filters] makes them apply."""
     for env_id, definition in _BUILTINS.items():
         if env_id not in gym.registry:
             define_variant(env_id, **definition, reward_threshold=BUILTIN_REWARD_THRESHOLDS[env_id])
     if MO_ID not in gym.registry:  # v0 with a vector reward (heartpole.mo): MO-Gymnasium's env checker is off
-        gym.register(id=MO_ID, entry_point=MO_ENTRY_POINT, max_episode_steps=Params.max_steps, disable_env_checker=True)
+        kwargs = {"max_steps": Params.max_steps}  # the env is its own time limit, as v0's
+        gym.register(id=MO_ID, entry_point=MO_ENTRY_POINT, kwargs=kwargs, disable_env_checker=True)
     if honour_version_warning_filters() is None:
         warnings.filterwarnings("ignore", V0_WARNING, DeprecationWarning, re.escape(_WARNING_MODULE))
 
@@ -214,11 +218,11 @@ def register_variant(
     >>> import heartpole
     >>> tea = heartpole.Action("drink_tea", effects={"alertness": (0.0, 0.5), "hypertension": (0.0, 0.15)})
     >>> spec = register_variant("TeaPole-v0", [*heartpole.V0_ACTIONS, tea], max_steps=200, replace=True)
-    >>> spec.max_episode_steps
-    200
+    >>> spec.kwargs["max_steps"], spec.max_episode_steps  # the env is its own time limit
+    (200, None)
     >>> env = gym.make("TeaPole-v0")
-    >>> env.action_space, env.unwrapped.actions[4].name
-    (Discrete(5), 'drink_tea')
+    >>> env.action_space, env.unwrapped.actions[4].name, env.spec.max_episode_steps
+    (Discrete(5), 'drink_tea', 200)
     """
     _check_id(id, replace)
     spec = define_variant(id, actions, variables, _params(params))
@@ -242,7 +246,8 @@ def define_variant(
     The spec's kwargs are the actions, the variables and ``params``, for the env constructors
     (``entry_points`` ``None``: ``heartpole.env:HeartPole`` and ``heartpole.vector:HeartPoleVectorEnv``), or
     ``params`` only for a variant's own constructors, which bind its actions and variables (v1's, whose spec
-    so stays plain data). ``reward_threshold`` defaults to the variant's
+    so stays plain data); either way with ``max_steps``, the episode length, and no ``max_episode_steps``
+    (`heartpole.time_limit`). ``reward_threshold`` defaults to the variant's
     `solved_bar`. Raises ``ValueError`` naming the id on a bad definition,
     leaving the registry as it was.
     """
@@ -258,6 +263,7 @@ def define_variant(
         raise ValueError(f"HeartPole variant {env_id!r}: {error}") from None
     kwargs: dict[str, Any] = {**({"actions": action_set, "variables": variable_set} if entry_points is None else {})}
     kwargs.update(params or {})
+    kwargs["max_steps"] = int(max_steps)  # the length, declared as the env's own parameter: no TimeLimit wrapper
     entry_point, vector_entry_point = entry_points or (ENTRY_POINT, VECTOR_ENTRY_POINT)
     replaced = gym.registry.pop(env_id, None)  # only a variant of ours, when replacing
     try:
@@ -266,7 +272,6 @@ def define_variant(
             entry_point=entry_point,
             vector_entry_point=vector_entry_point,
             kwargs=kwargs,
-            max_episode_steps=int(max_steps),
             reward_threshold=solved_bar(dynamics).reward_threshold if reward_threshold is None else reward_threshold,
         )
     except gym.error.Error as error:  # Gymnasium's own version rules, e.g. "Name" and "Name-v0" together
@@ -380,7 +385,7 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
     if "max_episode_steps" in params:
         raise TypeError(
             "register_variant() got an unexpected keyword argument 'max_episode_steps': a variant's episode "
-            "length is max_steps (its spec's max_episode_steps is set from it); "
+            "length is max_steps (its envs' spec.max_episode_steps reports it); "
             f"pass max_steps={params['max_episode_steps']!r}"
         )
     check_keywords("register_variant", params, ["id", "actions", "variables", "replace", *PARAMETERS])
@@ -390,17 +395,20 @@ def _params(params: dict[str, Any]) -> dict[str, Any]:
 def env_dynamics(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> Dynamics:
     """The [`Dynamics`][heartpole.dynamics.Dynamics] of the HeartPole env ``env_id`` built with ``env_kwargs``.
 
-    ``max_episode_steps`` is the env's ``max_steps`` here, as for the env itself and ``gymnasium.make_vec``
-    (``gymnasium.make`` alone would give it to its ``TimeLimit`` wrapper and build a 1,000-decision day).
+    ``max_episode_steps`` is a time limit on the env's ``max_steps`` (the registered one unless given), as
+    ``gymnasium.make_vec`` gives it to the vector env ([`episode_length`][heartpole.time_limit.episode_length]):
+    it may shorten the episodes, and one above ``max_steps`` is refused (``gymnasium.make`` would give it to a
+    ``TimeLimit`` wrapper, which cannot lengthen them).
 
     Raises:
-        ValueError: for an unknown id, a bad value, ``max_steps`` and ``max_episode_steps`` that disagree, or an
-            env that is not a HeartPole.
+        ValueError: for an unknown id, a bad value, a ``max_episode_steps`` above ``max_steps``, or an env that is
+            not a HeartPole.
         TypeError: for a keyword argument the env does not take, or a value of the wrong type.
     """
     kwargs = dict(env_kwargs or {})
-    if "max_episode_steps" in kwargs:  # gym.make hands it to its TimeLimit only; the env takes it, as make_vec does
-        kwargs["max_steps"] = episode_length(kwargs.get("max_steps"), kwargs["max_episode_steps"])
+    if "max_episode_steps" in kwargs:  # gym.make hands it to a TimeLimit only; the env takes it, as make_vec does
+        registered = getattr(gym.registry.get(env_id), "kwargs", {}).get("max_steps")
+        kwargs["max_steps"] = episode_length(kwargs.get("max_steps", registered), kwargs.pop("max_episode_steps"))
     try:
         with quiet_version_warnings():
             env = gym.make(env_id, **kwargs)

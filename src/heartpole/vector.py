@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import copy
 import functools
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from gymnasium.envs.registration import EnvSpec
 from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -23,7 +21,6 @@ from heartpole.env import (
     build_dynamics,
     check_render_mode,
     compiled_for,
-    episode_length,
     final_infos,
     observation_space,
 )
@@ -32,6 +29,7 @@ from heartpole.observation import Observer, Seen, observe
 from heartpole.parameters import Variable, check_integer
 from heartpole.people import People, Sample
 from heartpole.person_tables import PersonTables
+from heartpole.time_limit import OwnTimeLimit, episode_length
 
 INFO_KEYS = tuple(RESET_INFO)
 """The keys of a step's and a reset's ``info`` (each with its ``_key`` mask): the single env's."""
@@ -48,7 +46,7 @@ class EpisodeEndedError(ResetNeeded, AssertionError):
     ``gymnasium.error.ResetNeeded``, which says what to do)."""
 
 
-class HeartPoleVectorEnv(VectorEnv):
+class HeartPoleVectorEnv(OwnTimeLimit, VectorEnv):
     """``num_envs`` independent HeartPole episodes stepped together, with the single env's dynamics.
 
     The same compiled step as [`heartpole.HeartPole`][heartpole.env.HeartPole]
@@ -112,9 +110,10 @@ class HeartPoleVectorEnv(VectorEnv):
     people, env 0 is still the single env bit for bit; with a measurement, its noise differs after ``reset``
     (drawn for all envs at once).
 
-    Episode length: ``max_steps``, or Gymnasium's name for it, ``max_episode_steps`` (which
-    ``gymnasium.make_vec`` passes from the registered spec); when both are given ``max_steps`` wins, and
-    ``env.spec.max_episode_steps`` reports the length the env truncates at.
+    Episode length: ``max_steps``; ``max_episode_steps`` (which ``gymnasium.make_vec`` passes along with the
+    spec's ``max_steps``) is a time limit that may shorten it, as for the single env
+    ([`episode_length`][heartpole.time_limit.episode_length]); ``env.spec.max_episode_steps`` reports the length the
+    env truncates at.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 8, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -140,7 +139,7 @@ class HeartPoleVectorEnv(VectorEnv):
         if autoreset_mode not in list(AutoresetMode) and autoreset_mode not in [m.value for m in AutoresetMode]:
             accepted = [m.value for m in AutoresetMode]
             raise ValueError(f"autoreset_mode must be one of {accepted}, got {autoreset_mode!r}")
-        max_steps = episode_length(max_steps, max_episode_steps, max_steps_wins=True)
+        max_steps = episode_length(max_steps, max_episode_steps)
         self.dynamics = build_dynamics(
             heart_attack_proclivity, max_steps, actions, variables, model_params, "HeartPoleVectorEnv.__init__"
         )
@@ -182,27 +181,6 @@ class HeartPoleVectorEnv(VectorEnv):
         self._results = Recycler(functools.partial(new_results, self.num_envs, len(self.dynamics.variables)))
         self._loop: Any = None  # the compiled loop over envs, planned at the first step (`_plan_loop`)
         self._loop_arguments: tuple[Any, ...] = ()
-
-    @property
-    def spec(self) -> EnvSpec | None:
-        """The spec ``gymnasium.make_vec`` made this env from, its ``max_episode_steps`` this env's ``max_steps``."""
-        return self.__dict__.get("_spec")
-
-    @spec.setter
-    def spec(self, spec: EnvSpec | None) -> None:
-        # make_vec passes the registered max_episode_steps along with the caller's max_steps, which wins;
-        # a max_episode_steps the caller gave that disagrees with both is refused.
-        if spec is not None:
-            given = spec.kwargs.get("max_episode_steps", self.max_steps)
-            if given not in (self.max_steps, spec.max_episode_steps):
-                raise ValueError(
-                    f"max_steps={self.max_steps} and max_episode_steps={given} disagree; they are the same "
-                    "number (the episode length), so give one of them"
-                )
-            spec = copy.copy(spec)
-            spec.kwargs = {**spec.kwargs, "max_episode_steps": self.max_steps}
-            spec.max_episode_steps = self.max_steps
-        self.__dict__["_spec"] = spec
 
     @property
     def action_names(self) -> tuple[str, ...]:

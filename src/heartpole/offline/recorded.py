@@ -4,10 +4,11 @@ Minari keeps a dataset's env as a Gymnasium ``EnvSpec`` written to JSON (``datas
 ``dataset.recover_environment()`` is ``gymnasium.make`` of it. A registered id alone would make the plain env:
 without the dataset's people, its observed traits or its measurement, and with an observation space unlike the
 data's. So every dataset HeartPole records carries [`recorded_spec`][heartpole.offline.recorded.recorded_spec]:
-the id, ``max_episode_steps`` and ``reward_threshold`` of the registered spec, and as kwargs the env id and the
-keyword arguments the episodes were run with, in JSON (a population as
+the id and ``reward_threshold`` of the registered spec, the episode length as ``max_episode_steps``, and as kwargs
+the env id and the keyword arguments the episodes were run with, in JSON (a population as
 [`People.to_dict`][heartpole.people.People.to_dict] writes it, a measurement as
-[`Measurement.to_dict`][heartpole.measurement.Measurement.to_dict] does). Its entry points,
+[`Measurement.to_dict`][heartpole.measurement.Measurement.to_dict] does, a ``max_episode_steps`` as the env's
+``max_steps``, the argument ``gymnasium.make`` gives the env itself). Its entry points,
 [`recorded_env`][heartpole.offline.recorded.recorded_env] and
 [`recorded_vector_env`][heartpole.offline.recorded.recorded_vector_env], turn them back into objects and make the
 registered env with them, so ``recover_environment()`` (and ``eval_env=True``) gives that env, whose spaces are
@@ -61,6 +62,9 @@ def recorded_spec(env_id: str, env_kwargs: Mapping[str, Any] | None = None) -> E
     """
     kwargs = _json_kwargs(env_kwargs or {})
     dynamics = env_dynamics(env_id, _objects(kwargs))  # checks the id and every value now, not at recovery
+    if "max_episode_steps" in kwargs:  # make would give it to a TimeLimit only, which recorded_env unwraps
+        del kwargs["max_episode_steps"]
+        kwargs["max_steps"] = int(dynamics.params.max_steps)
     registered = gym.spec(env_id)
     spec = EnvSpec(
         id=env_id,

@@ -70,10 +70,7 @@ def act(policy: Policy, observation: np.ndarray, decisions_left: int | None = No
 
 
 def make_env(env_id: str, **env_kwargs: Any) -> gym.Env[Any, Any]:
-    """``gymnasium.make(env_id, **env_kwargs)`` with its ``TimeLimit`` at the env's own ``max_steps`` where one is
-    given: ``make`` keeps the registered ``max_episode_steps`` otherwise, so ``max_steps=2000`` stopped at 1,000."""
-    if "max_steps" in env_kwargs:
-        env_kwargs.setdefault("max_episode_steps", env_kwargs["max_steps"])
+    """``gymnasium.make(env_id, **env_kwargs)``, without Gymnasium's warning that v0 is out of date."""
     with quiet_version_warnings():  # drawing or filming v0 is deliberate
         return gym.make(env_id, **env_kwargs)
 
