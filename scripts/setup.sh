@@ -19,7 +19,7 @@ if [[ ",$extras," =~ ,(all|train|ray|test), ]]; then  # the extras that bring St
   .venv/bin/python -m pip install -q torch==2.13.0
 fi
 .venv/bin/python -m pip install -q -e ".[$extras]"
-# Compile the steps and the optimum's history program and policy once into numba's disk cache (beside the sources),
+# Compile the steps, the optimum's programs and its history policy once into numba's disk cache (beside the sources),
 # as pip compiles .pyc files: test workers and the first commands then load them instead of each compiling the same
 # code.
 .venv/bin/python -W ignore -c '
@@ -30,9 +30,9 @@ for env_id in ("HeartPole-v0", "HeartPole-v1"):
         for env in (gym.make(env_id, people=people), gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", people=people)):
             env.reset(seed=0)
             env.step(env.action_space.sample())
-from heartpole.optimum import solve_history
-from heartpole.parameters import Params
+from heartpole.optimum import solve
 import numpy as np
-solved = solve_history(Params(max_steps=40), grid=4, points=3)  # the history program (half a minute to compile)
-solved.sleeps(np.zeros((1, 6)), np.array([40]))  # and its policy, which optimal plays
+# a short day: its drinks need the lifetime check, so every program of a no-drink solve is compiled (about a minute)
+solved = solve("HeartPole-v0", max_steps=40).history
+solved.sleeps(np.zeros((1, 6)), np.array([40]))  # and the history policy, which optimal plays
 '
