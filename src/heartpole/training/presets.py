@@ -91,13 +91,20 @@ class TrainConfig:
         """The discount factor (SB3's default 0.99 unless the hyperparameters set one)."""
         return float(self.hyperparameters.get("gamma", 0.99))
 
+    @property
+    def heart_attack_penalty(self) -> float:
+        """The env's heart-attack penalty: v0's, or what ``env_kwargs`` (or the variant) sets."""
+        from heartpole.registry import env_dynamics
+
+        return float(env_dynamics(self.env_id, self.env_kwargs).params.heart_attack_penalty)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe."""
         out = asdict(self)
         out["net_arch"] = list(self.net_arch)
         out["hyperparameters"] = dict(self.hyperparameters)
         out["env_kwargs"] = dict(self.env_kwargs)
-        out["reward"] = {**asdict(self.reward), "description": self.reward.describe()}
+        out["reward"] = {**asdict(self.reward), "description": self.reward.describe(self.heart_attack_penalty)}
         return out
 
     @classmethod
