@@ -46,6 +46,7 @@ CPU), JAX in one compiled call (4,096 seeds train in under a minute on a GPU).""
 TRAINING_MODULES = ("stable_baselines3", "torch")
 RAY_MODULES = ("ray", "optuna")
 RAY_EXTRA = "pip install 'heartpole[ray]'"
+TRAIN_ENV_KWARGS_HELP = "the env's keywords: JSON or NAME=VALUE pairs, e.g. heart_attack_penalty=10 (over a preset's)"
 
 ABOVE_FLOOR, SHARE_OF_BEST = SOLVED_ATTACKS_ABOVE_FLOOR - 1, SOLVED_SHARE_OF_BEST_SCORE
 DESCRIPTION = f"""\
@@ -117,8 +118,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument(
         "--env", type=env_id_type, metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)"
     )
-    parser.add_argument("--env-kwargs", type=env_kwargs_type, metavar="KWARGS", help="the env's keyword arguments, "
-                        "as JSON or NAME=VALUE pairs (heart_attack_penalty=10,max_steps=500); over a preset file's")
+    parser.add_argument("--env-kwargs", type=env_kwargs_type, metavar="KWARGS", help=TRAIN_ENV_KWARGS_HELP)
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",
