@@ -7,7 +7,8 @@ Each summary (what ``heartpole train --seeds 0-19 --out DIR`` writes to ``DIR/su
 seed's regret with its 95% interval, marked when it does not meet the solved bar (the interval's upper end at
 most ``solved_bar.regret_at_most``). Below the table: seeds solved, the regrets' median and range, the
 training time (SB3 trains seed after seed, so a seed's own time; JAX trains every seed in one compiled call, so
-the call's) and the drinks per episode of the seeds' evaluations. Docs' tables of seeds are printed by this script, not typed in.
+the call's) and the drinks per episode of the seeds' evaluations. Docs' tables of seeds are printed by this
+script, not typed in.
 """
 
 from __future__ import annotations
