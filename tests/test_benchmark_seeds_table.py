@@ -16,6 +16,11 @@ RESULTS = ROOT / "docs" / "results"
 TABLES = [
     ("training.md", ["seeds-sb3-before.json", "seeds-sb3.json"], ["3e-4 constant (before)", "6e-4 annealed (now)"]),
     (
+        "training.md",
+        ["seeds-sb3-penalty10.json", "seeds-jax-penalty10.json"],
+        ["default preset (SB3)", "JAX backend (--backend jax)"],
+    ),
+    (
         "jax.md",
         ["seeds-jax-before.json", "seeds-jax.json"],
         ["one threefry draw a step (before)", "the key's own bits (now)"],
