@@ -12,6 +12,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+import heartpole  # noqa: E402
 from heartpole.cli import build_parser  # noqa: E402
 from heartpole.cli.common import CommandError  # noqa: E402
 from heartpole.cli.train import build_config  # noqa: E402
@@ -42,6 +43,9 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
     assert config.heart_attack_penalty == 10.0 and config_of().heart_attack_penalty == 100.0
     assert config.to_dict()["reward"]["description"].endswith("- 10 x (heart-attack risk - floor)")
     assert SHAPED_REWARD.describe().endswith("- 100 x (heart-attack risk - floor)")
+    heartpole.register_variant("PenaltyPole-v0", heartpole.V0_ACTIONS, heart_attack_penalty=7.0, replace=True)
+    assert preset_config(env_id="PenaltyPole-v0").heart_attack_penalty == 7.0  # the variant's own, unless given
+    assert preset_config(env_id="PenaltyPole-v0", env_kwargs={"heart_attack_penalty": 3}).heart_attack_penalty == 3.0
 
 
 @pytest.mark.parametrize(

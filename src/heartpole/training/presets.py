@@ -13,7 +13,7 @@ from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.parameters import check_integer, is_number
+from heartpole.parameters import Params, check_integer, is_number
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
@@ -93,10 +93,12 @@ class TrainConfig:
 
     @property
     def heart_attack_penalty(self) -> float:
-        """The env's heart-attack penalty: v0's, or what ``env_kwargs`` (or the variant) sets."""
-        from heartpole.registry import env_dynamics
+        """The env's heart-attack penalty: ``env_kwargs``' if set, else the registered variant's, else v0's (read
+        without building the env, so that a configuration ``check_config`` would refuse still describes itself)."""
+        import gymnasium as gym
 
-        return float(env_dynamics(self.env_id, self.env_kwargs).params.heart_attack_penalty)
+        given = {**gym.spec(self.env_id).kwargs, **self.env_kwargs}
+        return float(given.get("heart_attack_penalty", Params.heart_attack_penalty))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe."""
