@@ -46,6 +46,8 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
     heartpole.register_variant("PenaltyPole-v0", heartpole.V0_ACTIONS, heart_attack_penalty=7.0, replace=True)
     assert preset_config(env_id="PenaltyPole-v0").heart_attack_penalty == 7.0  # the variant's own, unless given
     assert preset_config(env_id="PenaltyPole-v0", env_kwargs={"heart_attack_penalty": 3}).heart_attack_penalty == 3.0
+    refused = TrainConfig(env_kwargs={"heart_attack_penalty": "high"})  # check_config refuses it; it still describes
+    assert refused.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
 
 
 @pytest.mark.parametrize(

@@ -233,9 +233,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     if n_envs is not None:
         overrides["n_envs"] = n_envs
     overrides["seed"] = training_seed("--seed", whole_number("--seed", args.seed, 0))
-    people = {**(getattr(args, "env_kwargs", None) or {}), **_people_kwargs(args)}  # --env-kwargs, then --people
-    if people and not is_file:  # a preset file's env and keywords are checked together, by check_config
-        overrides["env_kwargs"] = checked_env(overrides.get("env_id", DEFAULT_ENV), people)[1]
+    kwargs = {**(getattr(args, "env_kwargs", None) or {}), **_people_kwargs(args)}  # --env-kwargs, then --people
+    if kwargs and not is_file:  # a preset file's env and keywords are checked together, by check_config
+        overrides["env_kwargs"] = checked_env(overrides.get("env_id", DEFAULT_ENV), kwargs)[1]
     score_rate = _score_rate(args.score_rate)
     try:
         if not is_file:
@@ -250,8 +250,8 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
         raise CommandError(error_line(error)) from None
     if args.algo is not None and args.algo.lower() != config.algo:
         raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
-    if people:
-        overrides["env_kwargs"] = {**config.env_kwargs, **people}
+    if kwargs:
+        overrides["env_kwargs"] = {**config.env_kwargs, **kwargs}
     return replace(config, **overrides)
 
 

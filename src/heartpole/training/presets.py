@@ -94,11 +94,13 @@ class TrainConfig:
     @property
     def heart_attack_penalty(self) -> float:
         """The env's heart-attack penalty: ``env_kwargs``' if set, else the registered variant's, else v0's (read
-        without building the env, so that a configuration ``check_config`` would refuse still describes itself)."""
+        without building the env, so that a configuration ``check_config`` would refuse still describes itself;
+        NaN where the value is not a number)."""
         import gymnasium as gym
 
         given = {**gym.spec(self.env_id).kwargs, **self.env_kwargs}
-        return float(given.get("heart_attack_penalty", Params.heart_attack_penalty))
+        value = given.get("heart_attack_penalty", Params.heart_attack_penalty)
+        return float(value) if is_number(value) else math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe."""
