@@ -5,9 +5,10 @@
 
 Each summary (what ``heartpole train --seeds 0-19 --out DIR`` writes to ``DIR/summary.json``) gives a column: a
 seed's regret with its 95% interval, marked when it does not meet the solved bar (the interval's upper end at
-most ``solved_bar.regret_at_most``). Below the table: seeds solved, the regrets' median and range, and the
+most ``solved_bar.regret_at_most``). Below the table: seeds solved, the regrets' median and range, the
 training time (SB3 trains seed after seed, so a seed's own time; JAX trains every seed in one compiled call, so
-the call's). Docs' tables of seeds are printed by this script, not typed in.
+the call's) and the drinks per episode of the seeds' evaluations. Docs' tables of seeds are printed by this
+script, not typed in.
 """
 
 from __future__ import annotations
@@ -46,6 +47,16 @@ def training_time(summary: dict[str, Any]) -> str:
     return f"{statistics.median(seconds):.0f} s a seed (median; {min(seconds):.0f} to {max(seconds):.0f})"
 
 
+def drinking(summary: dict[str, Any]) -> str:
+    """The drinks per episode of the seeds' evaluations in words: none, or how many seeds drink and how much."""
+    drinks = [run["drinks_per_episode"] for run in summary["runs"]]
+    drinkers = sum(value > 0 for value in drinks)
+    if not drinkers:
+        return "no drinks in any seed's evaluation"
+    return (f"{drinkers} of {len(drinks)} seeds drink, drinks per episode median {statistics.median(drinks):.3f}, "
+            f"{min(drinks):.3f} to {max(drinks):.3f}")  # fmt: skip
+
+
 def table(summaries: list[dict[str, Any]], labels: list[str]) -> str:
     """The Markdown table: a row per seed, a column per summary, then a line per summary."""
     runs = [{run["seed"]: run for run in summary["runs"]} for summary in summaries]
@@ -62,7 +73,7 @@ def table(summaries: list[dict[str, Any]], labels: list[str]) -> str:
         lines.append(
             f"- {label}: {solved} of {len(regrets)} seeds solved (upper end of the regret interval <= {bar}); "
             f"regret median {statistics.median(regrets):.4f}, {min(regrets):.4f} to {max(regrets):.4f}; "
-            f"training {training_time(summary)}."
+            f"training {training_time(summary)}; {drinking(summary)}."
         )
     return "\n".join(lines)
 

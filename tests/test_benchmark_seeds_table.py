@@ -16,6 +16,11 @@ RESULTS = ROOT / "docs" / "results"
 TABLES = [
     ("training.md", ["seeds-sb3-before.json", "seeds-sb3.json"], ["3e-4 constant (before)", "6e-4 annealed (now)"]),
     (
+        "training.md",
+        ["seeds-sb3-penalty10.json", "seeds-jax-penalty10.json"],
+        ["default preset (SB3)", "JAX backend (--backend jax)"],
+    ),
+    (
         "jax.md",
         ["seeds-jax-before.json", "seeds-jax.json"],
         ["one threefry draw a step (before)", "the key's own bits (now)"],
@@ -53,3 +58,13 @@ def test_a_file_that_is_no_summary_is_refused_by_name(tmp_path: Path) -> None:
     done = table([path], ["x"])
     assert done.returncode != 0
     assert f"{path} is not the summary.json of a `heartpole train --seeds` run" in done.stderr
+
+
+def test_the_drinks_line_counts_the_seeds_that_drink(tmp_path: Path) -> None:
+    summary = json.loads((RESULTS / "seeds-sb3.json").read_text())
+    assert "no drinks in any seed's evaluation" in table([RESULTS / "seeds-sb3.json"], ["x"]).stdout
+    summary["runs"][5]["drinks_per_episode"] = 0.25
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps(summary))
+    done = table([path], ["x"])
+    assert "1 of 20 seeds drink, drinks per episode median 0.000, 0.000 to 0.250" in done.stdout, done.stdout

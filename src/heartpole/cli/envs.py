@@ -98,9 +98,9 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
             if (env.env_id, env.env_kwargs) != (args.env, override):
                 print(f"note: {spec} was trained on {env.describe()} ({env.source}); playing --env {args.env}"
                       f"{f' with {override}' if override else ''} as given", file=sys.stderr)  # fmt: skip
-        return _checked(args.env, override)
+        return checked_env(args.env, override)
     if not recorded:
-        return _checked(DEFAULT_ENV, override)
+        return checked_env(DEFAULT_ENV, override)
     first_spec, first = recorded[0]
     for spec, env in recorded[1:]:
         if (env.env_id, env.env_kwargs) != (first.env_id, first.env_kwargs):
@@ -111,14 +111,15 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
     kwargs = {**first.env_kwargs, **override}
     shown = f"{first.env_id} with {kwargs}" if kwargs else first.env_id
     overridden = f" (--env-kwargs replacing {sorted(override)})" if override else ""
-    chosen = _checked(first.env_id, kwargs)
+    chosen = checked_env(first.env_id, kwargs)
     print(f"playing {shown} as recorded in {first.source}{overridden}", file=sys.stderr)
     return chosen
 
 
-def _checked(env_id: str, kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+def checked_env(env_id: str, kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """``(env_id, kwargs)`` once the env is known to take them: a keyword it does not take or a bad value is a
-    one-line [`CommandError`][heartpole.cli.common.CommandError] before any work."""
+    one-line [`CommandError`][heartpole.cli.common.CommandError] before any work (``evaluate``'s and ``train``'s
+    ``--env-kwargs``)."""
     from heartpole.registry import env_dynamics
 
     if kwargs:

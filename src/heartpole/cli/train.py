@@ -29,6 +29,7 @@ from heartpole.cli.common import (
     not_empty,
     one_line_error,
 )
+from heartpole.cli.envs import DEFAULT_ENV, checked_env, env_kwargs_type
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -45,6 +46,7 @@ CPU), JAX in one compiled call (4,096 seeds train in under a minute on a GPU).""
 TRAINING_MODULES = ("stable_baselines3", "torch")
 RAY_MODULES = ("ray", "optuna")
 RAY_EXTRA = "pip install 'heartpole[ray]'"
+TRAIN_ENV_KWARGS_HELP = "the env's keywords: JSON or NAME=VALUE pairs, e.g. heart_attack_penalty=10 (over a preset's)"
 
 ABOVE_FLOOR, SHARE_OF_BEST = SOLVED_ATTACKS_ABOVE_FLOOR - 1, SOLVED_SHARE_OF_BEST_SCORE
 DESCRIPTION = f"""\
@@ -86,6 +88,7 @@ examples:
   heartpole evaluate --policy runs/ppo/model.zip       # evaluate the trained model again
   heartpole train --backend jax --seeds 0-4 --out runs/ppo-jax   # PPO in JAX, five seeds in one compiled call
   heartpole train --people default --out runs/ppo-people          # trait-blind PPO over the default people
+  heartpole train --env-kwargs heart_attack_penalty=10 --out runs/ppo-penalty-10   # where drinks are cheaper
 
 --backend jax (needs the 'jax' extra too) trains the same PPO on the same reward with JAX: the whole run
 is one compiled function and the seeds run side by side (vmapped); compiled code is cached on disk, so
@@ -115,6 +118,7 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument(
         "--env", type=env_id_type, metavar="ID", help="env id (default: the preset's; HeartPole-v0 for built-in ones)"
     )
+    parser.add_argument("--env-kwargs", type=env_kwargs_type, metavar="KWARGS", help=TRAIN_ENV_KWARGS_HELP)
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",
@@ -229,9 +233,9 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     if n_envs is not None:
         overrides["n_envs"] = n_envs
     overrides["seed"] = training_seed("--seed", whole_number("--seed", args.seed, 0))
-    people = _people_kwargs(args)
-    if people and not is_file:
-        overrides["env_kwargs"] = people
+    kwargs = {**(getattr(args, "env_kwargs", None) or {}), **_people_kwargs(args)}  # --env-kwargs, then --people
+    if kwargs and not is_file:  # a preset file's env and keywords are checked together, by check_config
+        overrides["env_kwargs"] = checked_env(overrides.get("env_id", DEFAULT_ENV), kwargs)[1]
     score_rate = _score_rate(args.score_rate)
     try:
         if not is_file:
@@ -246,8 +250,8 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
         raise CommandError(error_line(error)) from None
     if args.algo is not None and args.algo.lower() != config.algo:
         raise CommandError(f"--algo {args.algo} differs from the preset file's {config.algo}; leave --algo out")
-    if people:
-        overrides["env_kwargs"] = {**config.env_kwargs, **people}
+    if kwargs:
+        overrides["env_kwargs"] = {**config.env_kwargs, **kwargs}
     return replace(config, **overrides)
 
 
@@ -411,7 +415,8 @@ def _announce(config: TrainConfig, seeds: list[int] | None, out: Path, backend: 
     which = f"seeds {', '.join(map(str, seeds))}" if seeds is not None else f"seed {config.seed}"
     print(
         f"training {config.algo.upper()} ({config.preset} preset) on {config.env_id}: {config.timesteps:,} steps, "
-        f"{config.n_envs} envs, {which}, backend {backend}; reward: {config.reward.describe()} -> {out}",
+        f"{config.n_envs} envs, {which}, backend {backend}; "
+        f"reward: {config.reward.describe(config.heart_attack_penalty)} -> {out}",
         flush=True,
     )
 
@@ -466,16 +471,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     """Every seed's row, then the interquartile mean across seeds with its 95% bootstrap interval."""
     from heartpole.training import aggregate_figures
 
-    headers = [
-        "seed",
-        "heart attacks/ep",
-        "score",
-        "return",
-        "return 95% CI",
-        "expected-risk return",
-        "regret [95% CI]",
-    ]
-    headers += ["s", "solved"]
+    headers = ["seed", "heart attacks/ep", "score", "return", "return 95% CI", "expected-risk return",
+               "regret [95% CI]", "s", "solved"]  # fmt: skip
     rows = [
         [
             run["seed"],

@@ -13,7 +13,7 @@ from typing import Any, Literal, TypeAlias
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
 from heartpole import files
-from heartpole.parameters import check_integer, is_number
+from heartpole.parameters import Params, check_integer, is_number
 from heartpole.policies import (  # the run's file names and the algorithms, each defined once, there
     SB3_ALGORITHMS,
 )
@@ -91,13 +91,24 @@ class TrainConfig:
         """The discount factor (SB3's default 0.99 unless the hyperparameters set one)."""
         return float(self.hyperparameters.get("gamma", 0.99))
 
+    @property
+    def heart_attack_penalty(self) -> float:
+        """The env's heart-attack penalty: ``env_kwargs``' if set, else the registered variant's, else v0's (read
+        without building the env, so that a configuration ``check_config`` would refuse still describes itself;
+        NaN where the value is not a number)."""
+        import gymnasium as gym
+
+        given = {**gym.spec(self.env_id).kwargs, **self.env_kwargs}
+        value = given.get("heart_attack_penalty", Params.heart_attack_penalty)
+        return float(value) if is_number(value) else math.nan
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe."""
         out = asdict(self)
         out["net_arch"] = list(self.net_arch)
         out["hyperparameters"] = dict(self.hyperparameters)
         out["env_kwargs"] = dict(self.env_kwargs)
-        out["reward"] = {**asdict(self.reward), "description": self.reward.describe()}
+        out["reward"] = {**asdict(self.reward), "description": self.reward.describe(self.heart_attack_penalty)}
         return out
 
     @classmethod

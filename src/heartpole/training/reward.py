@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import heartpole  # noqa: F401  (registers the HeartPole ids)
-from heartpole.parameters import check_number, is_number
+from heartpole.parameters import Params, check_number, is_number
 
 # ------------------------------------------------------------------------------------------------------
 # the training reward
@@ -47,16 +47,16 @@ class TrainingReward:
         """Whether this is exactly the env's reward."""
         return not self.expected_risk and self.score_rate is None
 
-    def describe(self) -> str:
-        """One line for humans."""
+    def describe(self, penalty: float = Params.heart_attack_penalty) -> str:
+        """One line for humans, with the env's heart-attack ``penalty`` (v0's by default)."""
         if self.is_env_reward:
-            return "the env's reward (score change - 100 x heart attack)"
+            return f"the env's reward (score change - {penalty:g} x heart attack)"
         score = (
             "score change"
             if self.score_rate is None
             else f"(productivity - {self.score_rate} x half-hours) / {self.horizon:g}"
         )
-        risk = "100 x (heart-attack risk - floor)" if self.expected_risk else "100 x heart attack"
+        risk = f"{penalty:g} x " + ("(heart-attack risk - floor)" if self.expected_risk else "heart attack")
         return f"{score} - {risk}"
 
 
