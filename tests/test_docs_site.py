@@ -95,6 +95,7 @@ def test_every_module_has_its_api_page() -> None:
     assert sorted(expected - rendered) == []
 
 
+@pytest.mark.slow  # two strict builds of the site (about 4 s each): CI's slow stage shows the check can fail
 @pytest.mark.parametrize(
     "where, breakage",
     [
