@@ -1,6 +1,6 @@
 """heartpole.jax.LegacyStep: gymnax's older five-value step, so that rejax (0.1.3) trains on HeartPole.
 
-The wrapper's cases run everywhere JAX is. The training case (named ``rejax``) needs rejax, which is no
+The wrapper's cases run everywhere JAX is. The training case (docs/rejax.md's example, fewer steps) needs rejax, which is no
 dependency of HeartPole (it brings gymnax, whose pins would downgrade HeartPole's Gymnasium): it runs in the
 venv that scripts/test_rejax.sh builds, and is skipped elsewhere.
 """
@@ -8,6 +8,8 @@ venv that scripts/test_rejax.sh builds, and is skipped elsewhere.
 from __future__ import annotations
 
 import copy
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -62,24 +64,35 @@ def test_everything_else_is_the_envs_and_it_deep_copies() -> None:
         LegacyStep(legacy)  # type: ignore[arg-type]
 
 
-def test_rejax_ppo_trains_on_heartpole() -> None:
-    """docs/rejax.md's example, tiny: rejax's PPO trains and evaluates on HeartPole with finite results."""
-    rejax = pytest.importorskip("rejax")
-    env, params = make("HeartPole-v0", max_steps=64)
-    algo = rejax.PPO.create(
-        env=LegacyStep(env),
-        env_params=params,
-        total_timesteps=2048,
-        eval_freq=1024,
-        num_envs=4,
-        num_steps=64,
-        num_epochs=2,
-        num_minibatches=4,
-    )
-    train_state, (lengths, returns) = jax.jit(algo.train)(jax.random.key(0))
-    assert int(train_state.global_step) == 2048
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "rejax.md"
+SCALED = {"total_timesteps=5_000_000": "total_timesteps=8_192", "eval_freq=1_000_000": "eval_freq=4_096"}
+"""docs/rejax.md's step counts, scaled down: two PPO updates of 64 x 64 steps instead of 1,221."""
+
+
+def docs_example() -> str:
+    """docs/rejax.md's Python example with `SCALED`'s step counts (each replaced exactly once)."""
+    found = re.search(r"<!-- no-test: needs rejax[^>]*-->\n```python\n(.*?)```", DOCS.read_text(), re.DOTALL)
+    assert found, f"{DOCS}: its rejax example (after the no-test line) is gone"
+    code = found.group(1)
+    for old, new in SCALED.items():
+        assert code.count(old) == 1, f"{DOCS}: the example no longer has {old}"
+        code = code.replace(old, new)
+    return code
+
+
+def test_the_docs_example_trains_with_fewer_steps(capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/rejax.md's example as written but for its step counts: rejax's PPO trains and evaluates on HeartPole
+    with finite results, and its trained policy acts."""
+    pytest.importorskip("rejax")
+    namespace: dict[str, object] = {}
+    exec(compile(docs_example(), str(DOCS), "exec"), namespace)
+    lengths, returns = (np.asarray(namespace[name]) for name in ("lengths", "returns"))
     assert lengths.shape == returns.shape == (3, 128)  # the initial evaluation and one per eval_freq steps
-    assert np.all(np.asarray(lengths) == 64) and np.all(np.isfinite(np.asarray(returns)))
-    actions = jax.vmap(algo.make_act(train_state))(jax.numpy.zeros((5, *env.observation_space(params).shape)),
-                                                   jax.random.split(jax.random.key(1), 5))  # fmt: skip
+    assert np.all(lengths == 1000) and np.all(np.isfinite(returns))
+    printed = capsys.readouterr().out
+    assert printed.startswith("[") and printed.count("\n") == 1, printed  # the example's print: the mean returns
+    env, params = make("HeartPole-v0")
+    act = namespace["act"]
+    keys = jax.random.split(jax.random.key(1), 5)
+    actions = jax.vmap(act)(jax.numpy.zeros((5, *env.observation_space(params).shape)), keys)  # type: ignore[arg-type]
     assert np.all((np.asarray(actions) >= 0) & (np.asarray(actions) < env.num_actions))
