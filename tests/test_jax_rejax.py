@@ -1,8 +1,8 @@
 """heartpole.jax.LegacyStep: gymnax's older five-value step, so that rejax (0.1.3) trains on HeartPole.
 
-The wrapper's cases run everywhere JAX is. The training case (docs/rejax.md's example, fewer steps) needs rejax, which is no
-dependency of HeartPole (it brings gymnax, whose pins would downgrade HeartPole's Gymnasium): it runs in the
-venv that scripts/test_rejax.sh builds, and is skipped elsewhere.
+The wrapper's cases run everywhere JAX is. The training case (docs/rejax.md's example, fewer steps) needs rejax,
+which is no dependency of HeartPole (it brings gymnax, whose pins would downgrade HeartPole's Gymnasium): it runs
+in the venv that scripts/test_rejax.sh builds, and is skipped elsewhere.
 """
 
 from __future__ import annotations
