@@ -153,12 +153,12 @@ def test_results_that_cannot_be_paired_are_refused() -> None:
 
 
 def test_evaluation_is_reproducible_and_chunks_are_fixed_by_seed() -> None:
-    a = evaluate("random", episodes=30, seed=4, num_envs=10, env_kwargs={"max_steps": 40})
-    b = evaluate("random", episodes=30, seed=4, num_envs=10, env_kwargs={"max_steps": 40})
+    a = evaluate("random", episodes=30, seed=4, num_envs=10, env_kwargs={"max_steps": 40}, regret=False)
+    b = evaluate("random", episodes=30, seed=4, num_envs=10, env_kwargs={"max_steps": 40}, regret=False)
     np.testing.assert_array_equal(a.returns, b.returns)
-    prefix = evaluate("random", episodes=20, seed=4, num_envs=10, env_kwargs={"max_steps": 40})
+    prefix = evaluate("random", episodes=20, seed=4, num_envs=10, env_kwargs={"max_steps": 40}, regret=False)
     np.testing.assert_array_equal(prefix.expected_returns, a.expected_returns[:20])  # chunk 0 and 1 alike
-    other = evaluate("random", episodes=30, seed=5, num_envs=10, env_kwargs={"max_steps": 40})
+    other = evaluate("random", episodes=30, seed=5, num_envs=10, env_kwargs={"max_steps": 40}, regret=False)
     assert not np.array_equal(other.returns, a.returns)
     assert len(set(np.round(a.expected_returns, 9))) == 30  # chunks are independent streams
 
@@ -166,7 +166,7 @@ def test_evaluation_is_reproducible_and_chunks_are_fixed_by_seed() -> None:
 def test_random_policy_does_not_touch_numpys_global_state() -> None:
     np.random.seed(123)
     before = np.random.get_state()[1].copy()
-    evaluate("random", episodes=5, seed=0, env_kwargs={"max_steps": 20})
+    evaluate("random", episodes=5, seed=0, env_kwargs={"max_steps": 20}, regret=False)
     np.testing.assert_array_equal(np.random.get_state()[1], before)
 
 
@@ -175,7 +175,7 @@ def test_random_policy_does_not_touch_numpys_global_state() -> None:
 
 
 def test_result_fields_and_json() -> None:
-    result = evaluate(ReferencePolicy(), episodes=3, seed=0, env_kwargs={"max_steps": 50})
+    result = evaluate(ReferencePolicy(), episodes=3, seed=0, env_kwargs={"max_steps": 50}, regret=False)
     data = result.to_dict()
     for key in ("mean_return", "ci95", "expected_return", "expected_ci95", "heart_attacks_per_episode", "score"):
         assert key in data
@@ -188,7 +188,9 @@ def test_result_fields_and_json() -> None:
 
 def test_progress_callback_sees_every_step() -> None:
     seen: list[int] = []
-    evaluate("nothing", episodes=7, seed=0, num_envs=3, env_kwargs={"max_steps": 25}, progress=seen.append)
+    evaluate(
+        "nothing", episodes=7, seed=0, num_envs=3, env_kwargs={"max_steps": 25}, progress=seen.append, regret=False
+    )
     assert sum(seen) == 7 * 25
 
 
