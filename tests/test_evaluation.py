@@ -22,6 +22,7 @@ from heartpole.evaluation import (
     rank,
 )
 from heartpole.model import alertness_decay, heart_attack_risk, productivity
+from heartpole.people import People, Person
 from heartpole.policies import ExpertPolicy, ReferencePolicy
 from heartpole.stats import standard_error
 
@@ -318,11 +319,21 @@ def test_one_resolution_of_the_env_id_per_command(monkeypatch: pytest.MonkeyPatc
         if getattr(module, "env_dynamics", None) is original:
             monkeypatch.setattr(module, "env_dynamics", counting)
     kwargs = {"max_steps": 1000}  # the default: its optimum is solved once for the suite
+    bo = Person("Bo", sleep_half_hours=12, wake_alertness=(0.6, 1.2))
+    # each person's optimum (oracle regret, the oracle policy) starts from the env's Dynamics too: a short day with
+    # costly heart attacks, solved in about a second a person
+    people = {
+        "max_steps": 100,
+        "heart_attack_penalty": 800.0,
+        "people": People(cohort=[Person("Ada", sleep_half_hours=16, wake_alertness=(0.7, 1.3)), bo]),
+    }
     for command in (
         lambda: evaluate("optimal", episodes=3, env_kwargs=kwargs, progress=True),
         lambda: evaluate(ExpertPolicy(), episodes=3, env_kwargs=kwargs),
         lambda: compare("expert", "random", episodes=3, env_kwargs=kwargs),
         lambda: baselines(episodes=2, env_kwargs=kwargs),
+        lambda: evaluate("oracle", episodes=3, env_kwargs=people),
+        lambda: compare("oracle", "expert", episodes=3, env_kwargs=people),
     ):
         calls.clear()
         command()

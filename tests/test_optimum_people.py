@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import heartpole.optimum.people as optimum_people
+from heartpole.actions import V0_ACTIONS
 from heartpole.optimum import NotCoveredError, optimum, oracle_regret, solve, solve_people
-from heartpole.parameters import Params
+from heartpole.parameters import V0_VARIABLES, Params
 from heartpole.people import People, Person, Uniform
 from heartpole.stats import confidence_interval
 
@@ -159,7 +160,7 @@ def test_from_the_first_lookup_that_solves_the_rest_go_to_workers(monkeypatch: p
     solving = {"Cy"}  # Ada and Bo are cache hits, Cy is the first solve
     submitted: list[str] = []
 
-    def lookup(env_id: str, kwargs: dict[str, object]) -> str:
+    def lookup(dynamics: object, env_id: str, kwargs: dict[str, object]) -> str:
         if kwargs["name"] in solving:
             time.sleep(0.05)
         return f"solution of {kwargs['name']}"
@@ -174,17 +175,20 @@ def test_from_the_first_lookup_that_solves_the_rest_go_to_workers(monkeypatch: p
         def __exit__(self, *exc: object) -> None:
             return None
 
-        def submit(self, worker: object, env_id: str, kwargs: dict[str, object]) -> Future[str]:
-            submitted.append(str(kwargs["name"]))
+        def submit(self, worker: object, job: optimum_people.Job) -> Future[str]:
+            submitted.append(job.name)
             future: Future[str] = Future()
-            future.set_result(lookup(env_id, kwargs))
+            future.set_result(job.solve())  # type: ignore[arg-type]
             return future
 
-    monkeypatch.setattr(optimum_people, "optimum", lookup)
+    monkeypatch.setattr(optimum_people, "optimum_for", lookup)
     monkeypatch.setattr(optimum_people, "ProcessPoolExecutor", Pool)
     monkeypatch.setattr(optimum_people, "SOLVED_HERE_SECONDS", 0.02)
-    jobs = [(name, {"name": name}) for name in ("Ada", "Bo", "Cy", "Di", "Ed")]
+    jobs = [
+        optimum_people.Job(name, "HeartPole-v0", {"name": name}, V0_ACTIONS, Params(), V0_VARIABLES)
+        for name in ("Ada", "Bo", "Cy", "Di", "Ed")
+    ]
     done: list[tuple[int, int]] = []
-    solved = optimum_people._solve_distinct("HeartPole-v0", jobs, 2, lambda k, n: done.append((k, n)))  # type: ignore[arg-type]
-    assert solved == [f"solution of {name}" for name in ("Ada", "Bo", "Cy", "Di", "Ed")]
+    solved = optimum_people._solve_distinct(jobs, 2, lambda k, n: done.append((k, n)))
+    assert solved == [f"solution of {name}" for name in ("Ada", "Bo", "Cy", "Di", "Ed")]  # type: ignore[comparison-overlap]
     assert submitted == ["Di", "Ed"] and done == [(k, 5) for k in range(1, 6)]

@@ -112,8 +112,8 @@ def evaluate(
     True
     """
     episodes, seed, chunk, env_kwargs = _checked(episodes, seed, num_envs, env_kwargs)
-    truth = people_truth(env_id, env_kwargs, show_progress=progress is True) if regret else None
     dynamics = env_dynamics(env_id, env_kwargs)  # the one resolution of env_id: everything below takes it
+    truth = people_truth(env_id, env_kwargs, show_progress=progress is True, dynamics=dynamics) if regret else None
     act, name = _resolve(policy, env_id, env_kwargs, seed, dynamics)
     return _evaluate(act, name, _Run(env_id, env_kwargs, dynamics, episodes, seed, chunk), truth, progress, regret)
 
@@ -220,7 +220,7 @@ def compare(
     run = _Run(env_id, kwargs, env_dynamics(env_id, kwargs), episodes, seed, chunk)
     # both policies resolved before either runs: a bad ``b`` cannot waste ``a``
     resolved = [_resolve(policy, env_id, kwargs, seed, run.dynamics) for policy in (policy_a, policy_b)]
-    truth = people_truth(env_id, kwargs, show_progress=progress is True)
+    truth = people_truth(env_id, kwargs, show_progress=progress is True, dynamics=run.dynamics)
     return Comparison.of(*(_evaluate(act, name, run, truth, progress, True) for act, name in resolved))
 
 
@@ -240,7 +240,7 @@ def baselines(
     episodes, seed, chunk, kwargs = _checked(episodes, seed, num_envs, env_kwargs)
     run = _Run(env_id, kwargs, env_dynamics(env_id, kwargs), episodes, seed, chunk)
     policies: list[PolicyLike] = [*available_builtins(env_id, kwargs, run.dynamics), *extra]
-    truth = people_truth(env_id, kwargs, show_progress=progress is True)
+    truth = people_truth(env_id, kwargs, show_progress=progress is True, dynamics=run.dynamics)
     resolved = [_resolve(policy, env_id, kwargs, seed, run.dynamics) for policy in policies]
     return rank([_evaluate(act, name, run, truth, progress, True) for act, name in resolved])
 

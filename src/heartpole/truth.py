@@ -20,6 +20,7 @@ import numpy as np
 from heartpole.optimum.people import split_people
 
 if TYPE_CHECKING:
+    from heartpole.dynamics import Dynamics
     from heartpole.optimum import PeopleOptimum
 
 NO_SINGLE_OPTIMUM = (
@@ -30,13 +31,18 @@ NO_SINGLE_OPTIMUM = (
 
 
 def people_truth(
-    env_id: str, env_kwargs: Mapping[str, Any] | None, *, show_progress: bool = False
+    env_id: str,
+    env_kwargs: Mapping[str, Any] | None,
+    *,
+    show_progress: bool = False,
+    dynamics: Dynamics | None = None,
 ) -> PeopleOptimum | str | None:
     """Each person's optimum of the env's ``people``: ``None`` without people, or a sentence saying why there
     is no oracle regret (a distribution of people, a person the solver does not cover).
 
     The first solve of the default cohort takes a minute or two (then loads from the cache in about a
-    second); ``show_progress`` draws a bar on stderr (where stderr is a terminal) while it runs.
+    second); ``show_progress`` draws a bar on stderr (where stderr is a terminal) while it runs. ``dynamics``: the
+    env's, where the caller has resolved ``env_id`` (each person's parameters start from it).
 
     Raises:
         ValueError, TypeError: a ``people`` that [`People.resolve`][heartpole.people.People.resolve] refuses.
@@ -57,7 +63,7 @@ def people_truth(
         bar.update(done - bar.done)
 
     try:
-        return solve_people(people, env_id, env_kwargs, progress=advance)
+        return solve_people(people, env_id, env_kwargs, progress=advance, dynamics=dynamics)
     except NotCoveredError as error:
         return f"the optimum is not known here ({' '.join(str(error).split())})"
     finally:

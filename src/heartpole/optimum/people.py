@@ -23,19 +23,22 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
-from heartpole.parameters import check_integer
+from heartpole.actions import Action
+from heartpole.dynamics import Dynamics
+from heartpole.parameters import Params, Variable, check_integer
 from heartpole.people import People
 from heartpole.stats import confidence_interval
 
-from .solution import OptimumSolution, optimum
+from .solution import OptimumSolution, optimum_for
 
 SOLVED_HERE_SECONDS = 0.5
 """A lookup slower than this was a solve, not a cache hit: the remaining people go to worker processes."""
 
+T = TypeVar("T")
 ProgressCallback = Callable[[int, int], None]
 """Called as ``progress(done, total)`` after each distinct person is solved or loaded."""
 POPULATION_KWARGS = ("people", "observe_traits", "measurement")
@@ -203,6 +206,7 @@ def solve_people(
     *,
     processes: int | None = None,
     progress: ProgressCallback | None = None,
+    dynamics: Dynamics | None = None,
 ) -> PeopleOptimum:
     """Each person's optimum, each distinct person solved once and cached as [`optimum`][heartpole.optimum.optimum]
     caches (memory and disk: later calls only load).
@@ -218,6 +222,8 @@ def solve_people(
             [`POPULATION_KWARGS`][heartpole.optimum.people.POPULATION_KWARGS] are left out).
         processes: worker processes (default: 2, or 1 on a one-core machine).
         progress: called as ``progress(done, total)`` after each distinct person.
+        dynamics: the env's [`Dynamics`][heartpole.dynamics.Dynamics] where the caller has resolved ``env_id``
+            already (its parameters are each person's base); ``None``: resolved here, once for the cohort.
 
     Raises:
         ValueError: a population that is not a finite cohort, or ``processes`` below 1.
@@ -231,31 +237,52 @@ def solve_people(
     workers = min(2, os.cpu_count() or 1) if processes is None else processes
     workers = check_integer("processes", workers, 1)
     base = split_people(env_kwargs)[1]  # the env's own population, if any, is not a parameter
+    if dynamics is None:
+        from heartpole.registry import env_dynamics
+
+        dynamics = env_dynamics(env_id, base)
     kwargs = [{**base, **person.values()} for person in cohort.cohort]
-    jobs: dict[tuple[tuple[str, Any], ...], tuple[str, dict[str, Any]]] = {}
+    jobs: dict[tuple[tuple[str, Any], ...], Job] = {}
     for person, changed in zip(cohort.cohort, kwargs):
-        jobs.setdefault(_key(changed), (person.name, changed))  # the first person of equal ones names it
-    solved = _solve_distinct(env_id, list(jobs.values()), workers, progress or _quiet)
+        key = _key(changed)
+        if key not in jobs:  # the first person of equal ones names it
+            params = _named(person.name, lambda: person.params(dynamics.params))  # noqa: B023 (called at once)
+            jobs[key] = Job(person.name, env_id, changed, dynamics.actions, params, dynamics.variables)
+    solved = _solve_distinct(list(jobs.values()), workers, progress or _quiet)
     by_key = dict(zip(jobs, solved))
     return PeopleOptimum(cohort, env_id, base, tuple(by_key[_key(changed)] for changed in kwargs))
 
 
-def _solve_distinct(
-    env_id: str, jobs: list[tuple[str, dict[str, Any]]], workers: int, progress: ProgressCallback
-) -> list[OptimumSolution]:
-    """Solve or load each ``(name, env_kwargs)``: here while lookups are cache hits, then, from the first lookup that
-    was a solve, the rest in workers (so a cohort whose first person is cached, v0's Ada, is solved in parallel)."""
+class Job(NamedTuple):
+    """One distinct person to solve: the env's actions and variables with the person's parameters (plain data, for
+    a worker process), labelled by the env id and keyword arguments that make that person's env."""
+
+    name: str
+    env_id: str
+    env_kwargs: dict[str, Any]
+    actions: tuple[Action, ...]
+    params: Params
+    variables: tuple[Variable, ...]
+
+    def solve(self) -> OptimumSolution:
+        """The person's optimum, solved or loaded ([`optimum_for`][heartpole.optimum.solution.optimum_for])."""
+        return optimum_for(Dynamics(self.actions, self.params, self.variables), self.env_id, self.env_kwargs)
+
+
+def _solve_distinct(jobs: list[Job], workers: int, progress: ProgressCallback) -> list[OptimumSolution]:
+    """Solve or load each job: here while lookups are cache hits, then, from the first lookup that was a solve, the
+    rest in workers (so a cohort whose first person is cached, v0's Ada, is solved in parallel)."""
     total = len(jobs)
     solutions: list[OptimumSolution] = []
-    for index, (name, kwargs) in enumerate(jobs):
+    for index, job in enumerate(jobs):
         start = time.perf_counter()
-        solutions.append(_named(name, lambda: optimum(env_id, kwargs)))  # noqa: B023 (called at once)
+        solutions.append(_named(job.name, job.solve))
         progress(len(solutions), total)
         rest = jobs[index + 1 :]
         if workers > 1 and rest and time.perf_counter() - start > SOLVED_HERE_SECONDS:
             context = multiprocessing.get_context("spawn")
             with ProcessPoolExecutor(min(workers, len(rest)), mp_context=context) as pool:
-                futures = [(name, pool.submit(_worker, env_id, kwargs)) for name, kwargs in rest]
+                futures = [(other.name, pool.submit(_worker, other)) for other in rest]
                 for name, future in futures:
                     solutions.append(_named(name, future.result))
                     progress(len(solutions), total)
@@ -263,12 +290,12 @@ def _solve_distinct(
     return solutions
 
 
-def _worker(env_id: str, kwargs: dict[str, Any]) -> OptimumSolution:
+def _worker(job: Job) -> OptimumSolution:
     """Solve (or load) one person in a worker process (its environment, so its cache folder, is the parent's)."""
-    return optimum(env_id, kwargs)
+    return job.solve()
 
 
-def _named(name: str, get: Callable[[], OptimumSolution]) -> OptimumSolution:
+def _named(name: str, get: Callable[[], T]) -> T:
     """``get()``, the person's name put before an error's message (the same type: NotCoveredError stays one)."""
     try:
         return get()

@@ -97,4 +97,6 @@ def oracle_policy(
     if people is None or not people.finite:
         shown = "no people" if people is None else "a distribution of people"
         raise ValueError(f"{NEEDS_COHORT}; {env_id!r} was given {shown}")
-    return OraclePolicy(dynamics, optimum if optimum is not None else solve_people(people, env_id, env_kwargs))
+    if optimum is None:
+        optimum = solve_people(people, env_id, env_kwargs, dynamics=dynamics)
+    return OraclePolicy(dynamics, optimum)
