@@ -62,6 +62,22 @@ def test_a_keyword_the_env_refuses_is_one_line_before_any_work(value: str, fragm
         config_of("--env-kwargs", value)
 
 
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["--env-kwargs", "people=default", "--people", "default"], "gives people and so does --people; give each"),
+        (["--env-kwargs", "observe_traits=false", "--people", "default", "--observe-traits"],
+         "gives observe_traits and so does --observe-traits; give each once \\(drop observe_traits= from"),
+    ],
+)  # fmt: skip
+def test_a_people_keyword_given_by_env_kwargs_and_a_people_option_is_refused(argv: list[str], fragment: str) -> None:
+    """As Python refuses a keyword argument given twice: --people used to replace --env-kwargs' silently."""
+    with pytest.raises(CommandError, match=fragment):
+        config_of(*argv)
+    kept = config_of("--env-kwargs", "observe_traits=true", "--people", "default").env_kwargs
+    assert kept == {"observe_traits": True, "people": "default"}  # one keyword each: no conflict
+
+
 def test_text_that_is_no_keywords_is_refused_by_the_parser(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         config_of("--env-kwargs", "nonsense")

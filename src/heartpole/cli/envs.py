@@ -116,6 +116,24 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
     return chosen
 
 
+PEOPLE_OPTIONS = {"people": "--people", "observe_traits": "--observe-traits"}
+"""The env keywords the people options give, with their options."""
+
+
+def joined_kwargs(env_kwargs: dict[str, Any], people: dict[str, Any]) -> dict[str, Any]:
+    """``--env-kwargs``' keywords with those of ``--people`` and ``--observe-traits`` (``people``); a keyword both
+    give is a one-line [`CommandError`][heartpole.cli.common.CommandError], as Python refuses a keyword argument
+    given twice."""
+    twice = [name for name in PEOPLE_OPTIONS if name in env_kwargs and name in people]
+    if twice:
+        options = " and ".join(PEOPLE_OPTIONS[name] for name in twice)
+        raise CommandError(
+            f"--env-kwargs gives {', '.join(twice)} and so does {options}; give each once (drop "
+            f"{', '.join(f'{name}=' for name in twice)} from --env-kwargs, or {options})"
+        )
+    return {**env_kwargs, **people}
+
+
 def checked_env(env_id: str, kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """``(env_id, kwargs)`` once the env is known to take them: a keyword it does not take or a bad value is a
     one-line [`CommandError`][heartpole.cli.common.CommandError] before any work (``evaluate``'s and ``train``'s
