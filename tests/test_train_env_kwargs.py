@@ -36,6 +36,16 @@ def test_the_env_kwargs_reach_the_config_under_the_people_flags_and_over_a_prese
     assert merged == {"max_steps": 40, **PENALTY}
 
 
+def test_score_rate_with_a_preset_file_is_refused_not_ignored(tmp_path: Path) -> None:
+    """The file's reward stays whole (its rate was pinned for its env): --score-rate 0.9 used to be dropped."""
+    preset = tmp_path / "p.json"
+    save_preset(preset_config(env_kwargs={"max_steps": 40}), preset)
+    with pytest.raises(CommandError, match=f"--score-rate applies to the built-in presets; preset file {preset} "):
+        config_of("--preset", str(preset), "--score-rate", "0.9")
+    assert config_of("--preset", str(preset)).reward == preset_config(env_kwargs={"max_steps": 40}).reward
+    assert config_of("--score-rate", "0.3").reward.score_rate == 0.3
+
+
 def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> None:
     """The penalty weighs the risk, not the score: the shaped reward's rate is v0's; its description says 10."""
     config = config_of("--env-kwargs", "heart_attack_penalty=10")

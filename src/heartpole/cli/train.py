@@ -122,7 +122,6 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",
-        default="best",
         metavar="R",
         help="the shaped reward's rate (default preset): best (98%% of the env's best known score), auto "
         "(estimated while training) or a number (default: best)",
@@ -236,7 +235,10 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     kwargs = joined_kwargs(getattr(args, "env_kwargs", None) or {}, _people_kwargs(args))
     if kwargs and not is_file:  # a preset file's env and keywords are checked together, by check_config
         overrides["env_kwargs"] = checked_env(overrides.get("env_id", DEFAULT_ENV), kwargs)[1]
-    score_rate = _score_rate(args.score_rate)
+    score_rate = _score_rate(args.score_rate or "best")
+    if is_file and args.score_rate is not None:  # the file's reward is kept whole, as its hyperparameters are
+        raise CommandError(f"--score-rate applies to the built-in presets; preset file {args.preset} sets its own "
+                           "reward.score_rate: leave --score-rate out (or edit the file)")  # fmt: skip
     try:
         if not is_file:
             if args.preset == "tutorial" and score_rate != "best":
