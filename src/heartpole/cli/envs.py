@@ -83,12 +83,13 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
     the env the models' folders record, said in one line on stderr when a record decides.
 
     Raises:
-        CommandError: a record that cannot be used, or models whose folders record different envs (without
-            ``--env``).
+        CommandError: a record that cannot be used, models whose folders record different envs (without
+            ``--env``), or a keyword given by both ``--env-kwargs`` and ``--people`` (or ``--observe-traits``)
     """
     from heartpole.policies.trained_env import trained_env
 
     override: dict[str, Any] = dict(getattr(args, "env_kwargs", None) or {})
+    joined_kwargs(override, {name: True for name in PEOPLE_OPTIONS if getattr(args, name, None) not in (None, False)})
     try:
         recorded = [(spec, env) for spec in specs if (env := trained_env(spec)) is not None]
     except ValueError as error:
