@@ -133,3 +133,13 @@ def _time_limits(env: gym.Env) -> list[int]:
             limits.append(env._max_episode_steps)
         env = env.env
     return limits
+
+
+def test_a_spec_taken_from_an_env_keeps_its_time_limit_as_docs_conventions_says() -> None:
+    """docs/conventions.md: a taken spec has ``max_episode_steps``, so a longer ``max_steps`` alone ends at the spec's
+    length (Gymnasium's ``TimeLimit``); with ``max_episode_steps`` too, or from the id, the episodes are longer."""
+    spec = gym.make(V0_ID, max_steps=30).spec
+    assert episode_steps(gym.make(spec, max_steps=60)) == 30
+    assert episode_steps(gym.make(spec, max_steps=60, max_episode_steps=60)) == 60
+    assert episode_steps(gym.make(spec.id, max_steps=60)) == 60
+    assert vector_episode_steps(gym.make_vec(spec, 2, max_steps=60, max_episode_steps=60)) == 60
