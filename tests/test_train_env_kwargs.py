@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -58,6 +59,15 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
     assert preset_config(env_id="PenaltyPole-v0", env_kwargs={"heart_attack_penalty": 3}).heart_attack_penalty == 3.0
     refused = TrainConfig(env_kwargs={"heart_attack_penalty": "high"})  # check_config refuses it; it still describes
     assert refused.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
+
+
+def test_a_config_of_an_unregistered_id_still_describes_itself() -> None:
+    """to_dict is data (a Ray worker, or a preset of a variant this process never registered): gym.spec raised."""
+    unknown = TrainConfig(env_id="NeverRegisteredPole-v0")
+    assert math.isnan(unknown.heart_attack_penalty)
+    assert unknown.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
+    given = TrainConfig(env_id="NeverRegisteredPole-v0", env_kwargs=PENALTY)
+    assert given.heart_attack_penalty == 10.0
 
 
 @pytest.mark.parametrize(
