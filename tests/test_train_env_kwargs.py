@@ -61,6 +61,13 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
     assert refused.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
 
 
+def test_a_max_episode_steps_is_recorded_as_the_max_steps_it_makes() -> None:
+    """A model folder recording max_episode_steps=30 replayed under evaluate's --env-kwargs max_steps=60 ran 30
+    steps (a time limit on the 60) and one under max_steps=20 was refused for a keyword the user never gave."""
+    assert config_of("--env-kwargs", "max_episode_steps=30").env_kwargs == {"max_steps": 30}
+    assert config_of("--env-kwargs", "max_steps=50,max_episode_steps=30").env_kwargs == {"max_steps": 30}
+
+
 def test_a_config_of_an_unregistered_id_still_describes_itself() -> None:
     """to_dict is data (a Ray worker, or a preset of a variant this process never registered): gym.spec raised."""
     unknown = TrainConfig(env_id="NeverRegisteredPole-v0")

@@ -138,12 +138,16 @@ def joined_kwargs(env_kwargs: dict[str, Any], people: dict[str, Any]) -> dict[st
 def checked_env(env_id: str, kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """``(env_id, kwargs)`` once the env is known to take them: a keyword it does not take or a bad value is a
     one-line [`CommandError`][heartpole.cli.common.CommandError] before any work (``evaluate``'s and ``train``'s
-    ``--env-kwargs``)."""
+    ``--env-kwargs``); a ``max_episode_steps`` becomes the ``max_steps`` it makes, so that a model folder records
+    the length itself (under a later ``max_steps`` it would shorten that silently)."""
     from heartpole.registry import env_dynamics
 
     if kwargs:
         try:
-            env_dynamics(env_id, kwargs)
+            dynamics = env_dynamics(env_id, kwargs)
         except (ValueError, TypeError) as error:
             raise CommandError(f"env {env_id} with {kwargs}: {error_line(error)}") from None
+        if "max_episode_steps" in kwargs:
+            kwargs = {k: v for k, v in kwargs.items() if k != "max_episode_steps"}
+            kwargs["max_steps"] = int(dynamics.params.max_steps)
     return env_id, kwargs
