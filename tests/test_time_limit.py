@@ -133,3 +133,33 @@ def _time_limits(env: gym.Env) -> list[int]:
             limits.append(env._max_episode_steps)
         env = env.env
     return limits
+
+
+def test_a_spec_taken_from_an_env_keeps_its_time_limit_as_docs_conventions_says() -> None:
+    """docs/conventions.md: a taken spec has ``max_episode_steps``, so a longer ``max_steps`` alone ends at the spec's
+    length (Gymnasium's ``TimeLimit``); with ``max_episode_steps`` too, or from the id, the episodes are longer."""
+    spec = gym.make(V0_ID, max_steps=30).spec
+    assert episode_steps(gym.make(spec, max_steps=60)) == 30
+    assert episode_steps(gym.make(spec, max_steps=60, max_episode_steps=60)) == 60
+    assert episode_steps(gym.make(spec.id, max_steps=60)) == 60
+    assert vector_episode_steps(gym.make_vec(spec, 2, max_steps=60, max_episode_steps=60)) == 60
+
+
+def test_the_optimum_check_s_progress_counts_the_steps_the_episodes_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A variant's max_steps, and a max_episode_steps below max_steps, are the length: the bar counted 1,000 a
+    variant's episode and max_steps where max_episode_steps shortened it."""
+    import argparse
+
+    from heartpole import progress
+    from heartpole.cli import optimum
+
+    totals: list[int] = []
+    real = progress.progress
+    monkeypatch.setattr(progress, "progress", lambda total, text: (totals.append(total), real(total, text))[1])
+    heartpole.register_variant("CheckPole-v0", heartpole.V0_ACTIONS, max_steps=20, replace=True)
+    args = argparse.Namespace(env="CheckPole-v0", check=2, seed=0)
+    optimum._check(args, {}, ("expert",))
+    optimum._check(
+        argparse.Namespace(env=V0_ID, check=2, seed=0), {"max_steps": 30, "max_episode_steps": 10}, ("expert",)
+    )
+    assert totals == [2 * 20, 2 * 10]

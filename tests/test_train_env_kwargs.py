@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -36,6 +37,16 @@ def test_the_env_kwargs_reach_the_config_under_the_people_flags_and_over_a_prese
     assert merged == {"max_steps": 40, **PENALTY}
 
 
+def test_score_rate_with_a_preset_file_is_refused_not_ignored(tmp_path: Path) -> None:
+    """The file's reward stays whole (its rate was pinned for its env): --score-rate 0.9 used to be dropped."""
+    preset = tmp_path / "p.json"
+    save_preset(preset_config(env_kwargs={"max_steps": 40}), preset)
+    with pytest.raises(CommandError, match=f"--score-rate applies to the built-in presets; preset file {preset} "):
+        config_of("--preset", str(preset), "--score-rate", "0.9")
+    assert config_of("--preset", str(preset)).reward == preset_config(env_kwargs={"max_steps": 40}).reward
+    assert config_of("--score-rate", "0.3").reward.score_rate == 0.3
+
+
 def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> None:
     """The penalty weighs the risk, not the score: the shaped reward's rate is v0's; its description says 10."""
     config = config_of("--env-kwargs", "heart_attack_penalty=10")
@@ -50,6 +61,22 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
     assert refused.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
 
 
+def test_a_max_episode_steps_is_recorded_as_the_max_steps_it_makes() -> None:
+    """A model folder recording max_episode_steps=30 replayed under evaluate's --env-kwargs max_steps=60 ran 30
+    steps (a time limit on the 60) and one under max_steps=20 was refused for a keyword the user never gave."""
+    assert config_of("--env-kwargs", "max_episode_steps=30").env_kwargs == {"max_steps": 30}
+    assert config_of("--env-kwargs", "max_steps=50,max_episode_steps=30").env_kwargs == {"max_steps": 30}
+
+
+def test_a_config_of_an_unregistered_id_still_describes_itself() -> None:
+    """to_dict is data (a Ray worker, or a preset of a variant this process never registered): gym.spec raised."""
+    unknown = TrainConfig(env_id="NeverRegisteredPole-v0")
+    assert math.isnan(unknown.heart_attack_penalty)
+    assert unknown.to_dict()["reward"]["description"].endswith("- nan x (heart-attack risk - floor)")
+    given = TrainConfig(env_id="NeverRegisteredPole-v0", env_kwargs=PENALTY)
+    assert given.heart_attack_penalty == 10.0
+
+
 @pytest.mark.parametrize(
     ("value", "fragment"),
     [
@@ -60,6 +87,22 @@ def test_the_default_preset_keeps_v0_s_rate_and_names_the_env_s_penalty() -> Non
 def test_a_keyword_the_env_refuses_is_one_line_before_any_work(value: str, fragment: str) -> None:
     with pytest.raises(CommandError, match=fragment):
         config_of("--env-kwargs", value)
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["--env-kwargs", "people=default", "--people", "default"], "gives people and so does --people; give each"),
+        (["--env-kwargs", "observe_traits=false", "--people", "default", "--observe-traits"],
+         "gives observe_traits and so does --observe-traits; give each once \\(drop observe_traits= from"),
+    ],
+)  # fmt: skip
+def test_a_people_keyword_given_by_env_kwargs_and_a_people_option_is_refused(argv: list[str], fragment: str) -> None:
+    """As Python refuses a keyword argument given twice: --people used to replace --env-kwargs' silently."""
+    with pytest.raises(CommandError, match=fragment):
+        config_of(*argv)
+    kept = config_of("--env-kwargs", "observe_traits=true", "--people", "default").env_kwargs
+    assert kept == {"observe_traits": True, "people": "default"}  # one keyword each: no conflict
 
 
 def test_text_that_is_no_keywords_is_refused_by_the_parser(capsys: pytest.CaptureFixture[str]) -> None:

@@ -129,6 +129,17 @@ def test_bad_env_kwargs_are_one_line(capsys) -> None:
     assert code == 2 and "unexpected keyword argument 'nope'" in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.parametrize(
+    "command",
+    [["evaluate", "--policy", "expert"], ["dataset", "--policy", "expert", "--id", "heartpole/v0/never-v0"]],
+)
+def test_people_given_by_env_kwargs_and_people_is_one_line_before_any_work(capsys, command: list[str]) -> None:
+    """As Python refuses a keyword argument given twice: --people used to replace --env-kwargs' people silently."""
+    code, out, err = _run(capsys, *command, "--env-kwargs", "people=default", "--people", "default")
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1, err
+    assert "--env-kwargs gives people and so does --people; give each once (drop people= from" in err
+
+
 def _copy_with_format(run: Path, where: Path, fmt: str | None) -> Path:
     """``run``'s folder copied to ``where``, its record's ``format`` set to ``fmt`` (removed: None)."""
     import shutil

@@ -83,12 +83,13 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
     the env the models' folders record, said in one line on stderr when a record decides.
 
     Raises:
-        CommandError: a record that cannot be used, or models whose folders record different envs (without
-            ``--env``).
+        CommandError: a record that cannot be used, models whose folders record different envs (without
+            ``--env``), or a keyword given by both ``--env-kwargs`` and ``--people`` (or ``--observe-traits``)
     """
     from heartpole.policies.trained_env import trained_env
 
     override: dict[str, Any] = dict(getattr(args, "env_kwargs", None) or {})
+    joined_kwargs(override, {name: True for name in PEOPLE_OPTIONS if getattr(args, name, None) not in (None, False)})
     try:
         recorded = [(spec, env) for spec in specs if (env := trained_env(spec)) is not None]
     except ValueError as error:
@@ -116,15 +117,37 @@ def choose_env(args: argparse.Namespace, specs: Sequence[str]) -> tuple[str, dic
     return chosen
 
 
+PEOPLE_OPTIONS = {"people": "--people", "observe_traits": "--observe-traits"}
+"""The env keywords the people options give, with their options."""
+
+
+def joined_kwargs(env_kwargs: dict[str, Any], people: dict[str, Any]) -> dict[str, Any]:
+    """``--env-kwargs``' keywords with those of ``--people`` and ``--observe-traits`` (``people``); a keyword both
+    give is a one-line [`CommandError`][heartpole.cli.common.CommandError], as Python refuses a keyword argument
+    given twice."""
+    twice = [name for name in PEOPLE_OPTIONS if name in env_kwargs and name in people]
+    if twice:
+        options = " and ".join(PEOPLE_OPTIONS[name] for name in twice)
+        raise CommandError(
+            f"--env-kwargs gives {', '.join(twice)} and so does {options}; give each once (drop "
+            f"{', '.join(f'{name}=' for name in twice)} from --env-kwargs, or {options})"
+        )
+    return {**env_kwargs, **people}
+
+
 def checked_env(env_id: str, kwargs: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """``(env_id, kwargs)`` once the env is known to take them: a keyword it does not take or a bad value is a
     one-line [`CommandError`][heartpole.cli.common.CommandError] before any work (``evaluate``'s and ``train``'s
-    ``--env-kwargs``)."""
+    ``--env-kwargs``); a ``max_episode_steps`` becomes the ``max_steps`` it makes, so that a model folder records
+    the length itself (under a later ``max_steps`` it would shorten that silently)."""
     from heartpole.registry import env_dynamics
 
     if kwargs:
         try:
-            env_dynamics(env_id, kwargs)
+            dynamics = env_dynamics(env_id, kwargs)
         except (ValueError, TypeError) as error:
             raise CommandError(f"env {env_id} with {kwargs}: {error_line(error)}") from None
+        if "max_episode_steps" in kwargs:
+            kwargs = {k: v for k, v in kwargs.items() if k != "max_episode_steps"}
+            kwargs["max_steps"] = int(dynamics.params.max_steps)
     return env_id, kwargs

@@ -253,10 +253,12 @@ def _check(
 ) -> dict[str, EvaluationResult]:
     from heartpole.evaluation import evaluate
     from heartpole.progress import progress
+    from heartpole.registry import env_dynamics
 
     results = {}
+    length = int(env_dynamics(args.env, kwargs).params.max_steps)  # a variant's, or a max_episode_steps below it
     for policy in policies:
-        steps = args.check * int(kwargs.get("max_steps", kwargs.get("max_episode_steps", 1000)))
+        steps = args.check * length
         with progress(steps, f"checking {policy}") as bar:
             results[policy] = evaluate(policy, args.env, args.check, args.seed, env_kwargs=kwargs, progress=bar.update)
     return results

@@ -29,7 +29,7 @@ from heartpole.cli.common import (
     not_empty,
     one_line_error,
 )
-from heartpole.cli.envs import DEFAULT_ENV, checked_env, env_kwargs_type
+from heartpole.cli.envs import DEFAULT_ENV, checked_env, env_kwargs_type, joined_kwargs
 from heartpole.policies import SB3_ALGORITHMS, VECNORMALIZE_NAME
 from heartpole.solved import SOLVED_ATTACKS_ABOVE_FLOOR, SOLVED_REGRET, SOLVED_SHARE_OF_BEST_SCORE, V1_BAR
 
@@ -122,7 +122,6 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--timesteps", metavar="N", help="env steps to train for (default: the preset's)")
     parser.add_argument(
         "--score-rate",
-        default="best",
         metavar="R",
         help="the shaped reward's rate (default preset): best (98%% of the env's best known score), auto "
         "(estimated while training) or a number (default: best)",
@@ -233,10 +232,13 @@ def build_config(args: argparse.Namespace) -> TrainConfig:
     if n_envs is not None:
         overrides["n_envs"] = n_envs
     overrides["seed"] = training_seed("--seed", whole_number("--seed", args.seed, 0))
-    kwargs = {**(getattr(args, "env_kwargs", None) or {}), **_people_kwargs(args)}  # --env-kwargs, then --people
+    kwargs = joined_kwargs(getattr(args, "env_kwargs", None) or {}, _people_kwargs(args))
     if kwargs and not is_file:  # a preset file's env and keywords are checked together, by check_config
         overrides["env_kwargs"] = checked_env(overrides.get("env_id", DEFAULT_ENV), kwargs)[1]
-    score_rate = _score_rate(args.score_rate)
+    score_rate = _score_rate(args.score_rate or "best")
+    if is_file and args.score_rate is not None:  # the file's reward is kept whole, as its hyperparameters are
+        raise CommandError(f"--score-rate applies to the built-in presets; preset file {args.preset} sets its own "
+                           "reward.score_rate: leave --score-rate out (or edit the file)")  # fmt: skip
     try:
         if not is_file:
             if args.preset == "tutorial" and score_rate != "best":

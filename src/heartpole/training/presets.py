@@ -95,11 +95,12 @@ class TrainConfig:
     def heart_attack_penalty(self) -> float:
         """The env's heart-attack penalty: ``env_kwargs``' if set, else the registered variant's, else v0's (read
         without building the env, so that a configuration ``check_config`` would refuse still describes itself;
-        NaN where the value is not a number)."""
+        NaN where the value is not a number, or the id is not registered and ``env_kwargs`` give none)."""
         import gymnasium as gym
 
-        given = {**gym.spec(self.env_id).kwargs, **self.env_kwargs}
-        value = given.get("heart_attack_penalty", Params.heart_attack_penalty)
+        spec = gym.registry.get(self.env_id)  # gym.spec raises on an id this process has not registered
+        default = math.nan if spec is None else spec.kwargs.get("heart_attack_penalty", Params.heart_attack_penalty)
+        value = self.env_kwargs.get("heart_attack_penalty", default)
         return float(value) if is_number(value) else math.nan
 
     def to_dict(self) -> dict[str, Any]:
