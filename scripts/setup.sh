@@ -19,9 +19,9 @@ if [[ ",$extras," =~ ,(all|train|ray|test), ]]; then  # the extras that bring St
   .venv/bin/python -m pip install -q torch==2.13.0
 fi
 .venv/bin/python -m pip install -q -e ".[$extras]"
-# Compile the steps, the optimum's programs and its history policy once into numba's disk cache (beside the sources),
-# as pip compiles .pyc files: test workers and the first commands then load them instead of each compiling the same
-# code.
+# Compile the steps, the optimum's programs and its history policy once into numba's disk cache (beside the
+# sources), as pip compiles .pyc files, and solve v0's optimum into the optimum cache ($HEARTPOLE_CACHE_DIR, else the
+# user's): test workers and the first commands then load them instead of each compiling and solving the same.
 .venv/bin/python -W ignore -c '
 import warnings, gymnasium as gym, heartpole
 warnings.simplefilter("ignore")  # after gymnasium, which sets its own filters: v0 is "out of date"
@@ -30,9 +30,10 @@ for env_id in ("HeartPole-v0", "HeartPole-v1"):
         for env in (gym.make(env_id, people=people), gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", people=people)):
             env.reset(seed=0)
             env.step(env.action_space.sample())
-from heartpole.optimum import solve
+from heartpole.optimum import optimum, solve
 import numpy as np
 # a short day: its drinks need the lifetime check, so every program of a no-drink solve is compiled (about a minute)
-solved = solve("HeartPole-v0", max_steps=40).history
-solved.sleeps(np.zeros((1, 6)), np.array([40]))  # and the history policy, which optimal plays
+solve("HeartPole-v0", max_steps=40)
+# v0's optimum, solved once into the optimum cache as the first evaluate would (about 15 s), and its history policy
+optimum("HeartPole-v0").history.sleeps(np.zeros((1, 6)), np.array([40]))
 '
