@@ -34,6 +34,6 @@ from heartpole.optimum import optimum, solve
 import numpy as np
 # a short day: its drinks need the lifetime check, so every program of a no-drink solve is compiled (about a minute)
 solve("HeartPole-v0", max_steps=40)
-# v0's optimum, solved once into the optimum cache as the first evaluate would (about 15 s), and its history policy
+# the v0 optimum, solved once into the optimum cache as the first evaluate would (about 15 s), and its history policy
 optimum("HeartPole-v0").history.sleeps(np.zeros((1, 6)), np.array([40]))
 '
